@@ -1,0 +1,103 @@
+"""Environment throughput against a bare mj_step loop over the same simulated time.
+
+For every drive fidelity and 20 and 50 obstacles: decisions per second of
+``env.step`` (resets excluded, timed separately), the simulated-time speed-up
+over real time, and the ratio to a bare ``mujoco.mj_step`` loop (one call per
+physics step, constant wheel commands) on the same compiled model for the same
+number of physics steps. One process, one core. Writes docs/PERFORMANCE.md.
+
+    python bench/bench_env.py [--decisions 2000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+
+from nirl_mj import spec as specs
+from nirl_mj.policies import rule_policy
+from nirl_mj.task import make_env
+
+try:
+    from report import write_section
+except ImportError:  # run as a module
+    from bench.report import write_section
+
+
+def measure(drive: str, obstacles: int, decisions: int, seed: int = 0) -> dict:
+    spec = specs.replace(
+        specs.load_task("navigate"), robot={"drive": drive}, arena={"static_obstacles": obstacles}
+    )
+    env = make_env(spec, seed=seed)
+    timestep = env.reset()
+    step_time = reset_time = 0.0
+    resets = 0
+    for _ in range(decisions):
+        if timestep.last():
+            t0 = time.perf_counter()
+            timestep = env.reset()
+            reset_time += time.perf_counter() - t0
+            resets += 1
+        action = rule_policy(timestep.observation["features"])
+        t0 = time.perf_counter()
+        timestep = env.step(action)
+        step_time += time.perf_counter() - t0
+    physics = env.physics
+    n_physics = decisions * round(spec.control.decision_period / spec.control.physics_timestep)
+    model, data = physics.model.ptr, physics.data.ptr
+    env.reset()
+    env.task.robot.set_wheel_speeds(physics, np.array([10.0, 0.0, -10.0]), spec.control.command_period)
+    t0 = time.perf_counter()
+    for _ in range(n_physics):
+        mujoco.mj_step(model, data)
+    bare_time = time.perf_counter() - t0
+    sim_time = decisions * spec.control.decision_period
+    return {
+        "drive": drive,
+        "obstacles": obstacles,
+        "decisions_per_s": decisions / step_time,
+        "realtime": sim_time / step_time,
+        "bare_steps_per_s": n_physics / bare_time,
+        "env_vs_bare": bare_time / step_time,
+        "reset_ms": 1e3 * reset_time / max(resets, 1),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--decisions", type=int, default=2000)
+    parser.add_argument("--no-write", action="store_true", help="print only")
+    args = parser.parse_args()
+    rows = []
+    for drive in ("tyre", "rollers", "planar"):
+        for obstacles in (20, 50):
+            r = measure(drive, obstacles, args.decisions)
+            rows.append(r)
+            print(
+                f"{drive:8s} {obstacles:3d} obstacles: {r['decisions_per_s']:7.0f} decisions/s, "
+                f"{r['realtime']:6.0f}x real time, bare {r['bare_steps_per_s']:8.0f} steps/s, "
+                f"env/bare {r['env_vs_bare']:.0%}, reset {r['reset_ms']:.1f} ms"
+            )
+    table = [
+        "| drive | obstacles | decisions/s | x real time | bare mj_step steps/s | env throughput / bare | reset (ms) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        table.append(
+            f"| {r['drive']} | {r['obstacles']} | {r['decisions_per_s']:.0f} | {r['realtime']:.0f} | "
+            f"{r['bare_steps_per_s']:.0f} | {r['env_vs_bare']:.0%} | {r['reset_ms']:.1f} |"
+        )
+    body = (
+        f"{args.decisions} decisions of 0.5 s per configuration with the rule policy, one process. "
+        "Targets (simulation issue): env throughput at least 75 % of the bare loop and at least "
+        "300x real time with `tyre` wheels.\n\n" + "\n".join(table)
+    )
+    if not args.no_write:
+        write_section("Environment throughput (bench/bench_env.py)", body)
+
+
+if __name__ == "__main__":
+    main()

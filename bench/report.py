@@ -1,0 +1,56 @@
+"""Writes one benchmark's section of docs/PERFORMANCE.md, atomically, keeping the others."""
+
+from __future__ import annotations
+
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+from datetime import UTC, datetime
+from pathlib import Path
+
+PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
+_HEADER = "# Performance\n\nEach section is written by the benchmark named in it; rerun the command to refresh it.\n"
+
+
+def machine() -> str:
+    """CPU model, cores and Python/MuJoCo versions, one line."""
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    import mujoco
+
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, MuJoCo {mujoco.__version__}"
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout.strip()
+        return out.stdout.strip() + ("+uncommitted" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def write_section(name: str, body: str) -> None:
+    """Replaces (or appends) the section ``## name`` with ``body`` plus machine, date and command."""
+    stamp = (
+        f"Machine: {machine()}. Date: {datetime.now(UTC):%Y-%m-%d %H:%M} UTC. Commit: {git_commit()}.\n"
+        f"Command: `{' '.join(['python', *sys.argv])}`\n\n"
+    )
+    section = f"## {name}\n\n{stamp}{body.strip()}\n"
+    text = PERFORMANCE_MD.read_text() if PERFORMANCE_MD.exists() else _HEADER
+    pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.S | re.M)
+    text = pattern.sub(lambda _: section + "\n", text) if pattern.search(text) else text.rstrip() + "\n\n" + section
+    PERFORMANCE_MD.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=PERFORMANCE_MD.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, PERFORMANCE_MD)

@@ -1,0 +1,303 @@
+"""Task specifications: the only module that reads task files.
+
+A task file is TOML with four tables, ``[arena]``, ``[robot]``, ``[sensing]`` and
+``[control]``, plus optional ``[[arena.obstacles]]`` entries listing obstacles
+explicitly. Every key is optional; an unknown key, a wrong type or a value out
+of range raises :class:`SpecError` naming the file, the field and what is
+accepted. Lengths are metres, speeds m/s, times seconds; angles are degrees in
+the file and radians in the spec objects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+TASKS_DIR = Path(__file__).resolve().parents[1] / "tasks"
+
+
+class SpecError(ValueError):
+    """A task file or spec value is invalid; the message names field and accepted values."""
+
+
+def _check(low: float | None = None, high: float | None = None, *, open_low: bool = False):
+    """Field metadata: numeric bounds (inclusive unless ``open_low``)."""
+    return {"low": low, "high": high, "open_low": open_low}
+
+
+def _choices(*values: str):
+    return {"choices": values}
+
+
+@dataclass(frozen=True)
+class ObstacleSpec:
+    """One explicitly placed obstacle.
+
+    ``size`` is (half-length x, half-length y) for a box or a wall segment and
+    (radius,) for a cylinder, metres; ``yaw`` is radians counter-clockwise.
+    """
+
+    shape: str = field(default="box", metadata=_choices("box", "cylinder", "wall"))
+    position: tuple[float, float] = (50.0, 50.0)
+    size: tuple[float, ...] = (1.0, 1.0)
+    yaw: float = field(default=0.0, metadata={"degrees": True})
+
+
+@dataclass(frozen=True)
+class ArenaSpec:
+    """Procedural arena: border walls, static, wall-segment and moving obstacles."""
+
+    size: tuple[float, float] = (100.0, 100.0)
+    start: tuple[float, float] = (10.0, 10.0)
+    target: tuple[float, float] = (90.0, 90.0)
+    target_radius: float = field(default=1.0, metadata=_check(0.0, open_low=True))
+    start_yaw: str | float = field(
+        default="target", metadata={"yaw_or_keyword": ("target", "random"), "degrees": True}
+    )
+    clear_radius: float = field(default=4.0, metadata=_check(0.0))
+    wall_height: float = field(default=1.0, metadata=_check(0.1))
+    wall_thickness: float = field(default=0.5, metadata=_check(0.05))
+    static_obstacles: int = field(default=20, metadata=_check(0))
+    obstacle_size: tuple[float, float] = (1.0, 4.0)
+    cylinder_fraction: float = field(default=0.5, metadata=_check(0.0, 1.0))
+    obstacle_height: float = field(default=1.0, metadata=_check(0.1))
+    interior_walls: int = field(default=0, metadata=_check(0))
+    interior_wall_length: tuple[float, float] = (5.0, 20.0)
+    moving_obstacles: int = field(default=0, metadata=_check(0))
+    moving_speed: tuple[float, float] = (0.2, 1.0)
+    moving_radius: tuple[float, float] = (0.5, 1.5)
+    grid_resolution: float = field(default=0.25, metadata=_check(0.01, 5.0))
+    path_margin: float = field(default=0.1, metadata=_check(0.0))
+    max_tries: int = field(default=50, metadata=_check(1))
+    obstacles: tuple[ObstacleSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Which physics model drives the robot and how its range sensors are sampled."""
+
+    drive: str = field(default="tyre", metadata=_choices("tyre", "rollers", "planar"))
+    rays_per_sensor: int = field(default=5, metadata=_check(1, 64))
+
+
+@dataclass(frozen=True)
+class SensingSpec:
+    """Range sensing and quantisation into danger levels.
+
+    ``range`` is measured from the robot's outline (metres). Clearance below
+    ``danger7_clearance`` is danger 7; clearances between it and ``range`` map
+    linearly onto levels 6..1; nothing within range is 0.
+    """
+
+    range: float = field(default=5.0, metadata=_check(0.0, open_low=True))
+    danger7_clearance: float = field(default=1.0, metadata=_check(0.0, open_low=True))
+
+
+@dataclass(frozen=True)
+class ControlSpec:
+    """Timing and speed of the discrete actions."""
+
+    speed: float = field(default=2.0, metadata=_check(0.0, 5.0, open_low=True))
+    decision_period: float = field(default=0.5, metadata=_check(0.0, open_low=True))
+    command_period: float = field(default=0.01, metadata=_check(0.0, open_low=True))
+    physics_timestep: float = field(default=0.005, metadata=_check(0.0, 0.05, open_low=True))
+    max_accel: float = field(default=4.0, metadata=_check(0.0, open_low=True))
+    step_budget: int = field(default=0, metadata=_check(0))
+    budget_factor: float = field(default=3.0, metadata=_check(1.0))
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A whole task: what ``make_env`` builds. ``name`` is informational."""
+
+    name: str = "custom"
+    description: str = ""
+    arena: ArenaSpec = ArenaSpec()
+    robot: RobotSpec = RobotSpec()
+    sensing: SensingSpec = SensingSpec()
+    control: ControlSpec = ControlSpec()
+
+    @property
+    def step_budget(self) -> int:
+        """Decisions per episode before a timeout: explicit, or ``budget_factor`` times
+        the straight start-to-target distance divided by the distance of one decision."""
+        if self.control.step_budget:
+            return self.control.step_budget
+        dx = self.arena.target[0] - self.arena.start[0]
+        dy = self.arena.target[1] - self.arena.start[1]
+        per_step = self.control.speed * self.control.decision_period
+        return math.ceil(self.control.budget_factor * math.hypot(dx, dy) / per_step)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A TOML-compatible dict (angles in degrees) that :func:`from_dict` reads back."""
+        return _to_plain(self)
+
+
+def _to_plain(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj):
+        out = {}
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            if f.metadata.get("degrees") and isinstance(value, float):
+                value = math.degrees(value)
+            out[f.name] = _to_plain(value)
+        return out
+    if isinstance(obj, tuple):
+        return [_to_plain(v) for v in obj]
+    return obj
+
+
+def _convert(cls: type, data: Any, where: str) -> Any:
+    """Builds dataclass ``cls`` from a plain dict, validating every field."""
+    if not isinstance(data, dict):
+        raise SpecError(f"{where}: expected a table, got {type(data).__name__}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        raise SpecError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; accepted: {', '.join(fields)}"
+        )
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for name, value in data.items():
+        kwargs[name] = _convert_field(fields[name], hints[name], value, f"{where}.{name}")
+    obj = cls(**kwargs)
+    _check_object(obj, where)
+    return obj
+
+
+def _convert_field(f: dataclasses.Field, hint: Any, value: Any, where: str) -> Any:
+    meta = f.metadata
+    if "yaw_or_keyword" in meta:
+        keywords = meta["yaw_or_keyword"]
+        if isinstance(value, str) and value in keywords:
+            return value
+        if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+            return math.radians(value)
+        raise SpecError(f"{where} = {value!r}: accepted: {', '.join(keywords)} or degrees")
+    value = _convert_type(hint, value, where)
+    if meta.get("degrees"):
+        value = math.radians(value)
+    if "choices" in meta and value not in meta["choices"]:
+        raise SpecError(f"{where} = {value!r}: accepted: {', '.join(meta['choices'])}")
+    low, high = meta.get("low"), meta.get("high")
+    if low is not None and (value < low or (meta.get("open_low") and value == low)):
+        op = ">" if meta.get("open_low") else ">="
+        raise SpecError(f"{where} = {value!r}: must be {op} {low}")
+    if high is not None and value > high:
+        raise SpecError(f"{where} = {value!r}: must be <= {high}")
+    return value
+
+
+def _convert_type(hint: Any, value: Any, where: str) -> Any:
+    origin = typing.get_origin(hint)
+    if dataclasses.is_dataclass(hint):
+        return _convert(hint, value, where)
+    if origin is tuple:
+        args = typing.get_args(hint)
+        if not isinstance(value, list | tuple):
+            raise SpecError(f"{where} = {value!r}: expected a list")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert_type(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise SpecError(f"{where} = {value!r}: expected a list of {len(args)} numbers")
+        return tuple(_convert_type(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SpecError(f"{where} = {value!r}: expected a number")
+        if not math.isfinite(value):
+            raise SpecError(f"{where} = {value!r}: expected a finite number")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SpecError(f"{where} = {value!r}: expected a whole number")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise SpecError(f"{where} = {value!r}: expected a string")
+        return value
+    raise SpecError(f"{where}: unsupported field type {hint}")
+
+
+def _check_range_pair(pair: tuple[float, float], where: str, positive: bool = True) -> None:
+    lo, hi = pair
+    if lo > hi or (positive and lo <= 0):
+        raise SpecError(f"{where} = {list(pair)}: expected [min, max] with 0 < min <= max")
+
+
+def _check_object(obj: Any, where: str) -> None:
+    """Cross-field checks that a single field's bounds cannot express."""
+    if isinstance(obj, ObstacleSpec):
+        n = 1 if obj.shape == "cylinder" else 2
+        if len(obj.size) != n or any(s <= 0 for s in obj.size):
+            what = "[radius]" if n == 1 else "[half_x, half_y]"
+            raise SpecError(f"{where}.size = {list(obj.size)}: a {obj.shape} takes {what} > 0")
+    elif isinstance(obj, ArenaSpec):
+        w, h = obj.size
+        if w <= 0 or h <= 0:
+            raise SpecError(f"{where}.size = {list(obj.size)}: both sides must be > 0")
+        for name in ("start", "target"):
+            x, y = getattr(obj, name)
+            if not (0 < x < w and 0 < y < h):
+                raise SpecError(f"{where}.{name} = {[x, y]}: must lie inside the arena {list(obj.size)}")
+        for name in ("obstacle_size", "interior_wall_length", "moving_radius"):
+            _check_range_pair(getattr(obj, name), f"{where}.{name}")
+        _check_range_pair(obj.moving_speed, f"{where}.moving_speed")
+    elif isinstance(obj, SensingSpec):
+        if obj.danger7_clearance >= obj.range:
+            raise SpecError(
+                f"{where}.danger7_clearance = {obj.danger7_clearance}: must be < range ({obj.range})"
+            )
+    elif isinstance(obj, ControlSpec):
+        for name, period in (("decision_period", obj.decision_period), ("command_period", obj.command_period)):
+            base = obj.physics_timestep if name == "command_period" else obj.command_period
+            ratio = period / base
+            if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+                raise SpecError(
+                    f"{where}.{name} = {period}: must be a whole multiple of "
+                    f"{'physics_timestep' if name == 'command_period' else 'command_period'} ({base})"
+                )
+
+
+def from_dict(data: dict[str, Any], source: str = "<dict>") -> TaskSpec:
+    """Validates a plain dict (as read from TOML) into a :class:`TaskSpec`."""
+    return _convert(TaskSpec, data, source)
+
+
+def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
+    """Returns the spec for a task name under ``tasks/``, a TOML path, or a spec object."""
+    if isinstance(task, TaskSpec):
+        return task
+    path = Path(task)
+    if path.suffix != ".toml":
+        named = TASKS_DIR / f"{task}.toml"
+        if not named.is_file():
+            available = sorted(p.stem for p in TASKS_DIR.glob("*.toml"))
+            raise SpecError(
+                f"unknown task {str(task)!r}: give a path to a .toml file or one of: {', '.join(available)}"
+            )
+        path = named
+    if not path.is_file():
+        raise SpecError(f"task file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path}: not valid TOML: {exc}") from None
+    data.setdefault("name", path.stem)
+    return from_dict(data, str(path))
+
+
+def replace(spec: TaskSpec, **sections: dict[str, Any]) -> TaskSpec:
+    """Returns ``spec`` with fields of its sections overridden and validated, e.g.
+    ``replace(spec, control={"speed": 3.0})``."""
+    data = spec.to_dict()
+    for section, values in sections.items():
+        if section not in data or not isinstance(data[section], dict):
+            raise SpecError(f"unknown section {section!r}; accepted: arena, robot, sensing, control")
+        data[section] = {**data[section], **values}
+    return from_dict(data, f"{spec.name} (overridden)")

@@ -1,0 +1,293 @@
+"""The navigation task: a Robotino in a procedural arena, six discrete actions.
+
+One action holds for a decision period (default 0.5 s). Composer's own loop
+calls Python hooks around every physics substep, which costs 40-60 % of the
+simulation time for this model; so this task reports one composer substep per
+control step and runs the other substeps itself in ``before_step``, in C
+(``mj_step`` with ``nstep``), one command period (default 10 ms) at a time. Per
+command period it sets the wheel commands, moves the moving obstacles and
+checks for collision, arrival and divergence; the episode's outcome is decided
+there, at 10 ms resolution.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+import dm_env
+import mujoco
+import numpy as np
+from dm_control import composer
+from dm_control.composer.observation import observable
+from dm_env import specs
+
+from nirl_mj import features
+from nirl_mj.arena import NavigationArena
+from nirl_mj.drive import DriveController
+from nirl_mj.layout import Layout, generate_layout
+from nirl_mj.robot import Robotino
+from nirl_mj.sensing import RangeSensors, Scan
+from nirl_mj.spec import TaskSpec, load_task
+
+BODY_RADIUS = 0.225
+"""Radius of the Robotino's outline, metres (Robotino 3: 450 mm diameter)."""
+
+_DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+)
+
+
+class Outcome(enum.IntEnum):
+    """How an episode ended; the ``outcome`` observation holds it (RUNNING until the end)."""
+
+    RUNNING = 0
+    TARGET = 1
+    COLLISION = 2
+    TIMEOUT = 3
+    PHYSICS_ERROR = 4
+
+
+class NavigationTask(composer.Task):
+    """Reach the target without touching any obstacle or wall, within the step budget.
+
+    Reward (for users of the dm_env interface; learners in this project do not
+    read it): progress towards the target in units of one decision's travel,
+    plus +1 on arrival and -1 on collision or divergence. Discount is 0 after
+    arrival, collision or divergence and 1 on a timeout.
+    """
+
+    def __init__(self, spec: TaskSpec) -> None:
+        self._spec = spec
+        control = spec.control
+        self._arena = NavigationArena(spec.arena)
+        self._robot = Robotino(fidelity=spec.robot.drive)
+        self._robot.attach_to(self._arena, self._arena.ground_geom)
+        # Composer's base arena asks for noslip iterations; the drive models are
+        # tuned without them and they cost about 20 % of the step time.
+        self._arena.mjcf_model.option.noslip_iterations = 0
+        self.set_timesteps(control_timestep=control.decision_period, physics_timestep=control.physics_timestep)
+        self._substeps_per_command = round(control.command_period / control.physics_timestep)
+        self._commands_per_decision = round(control.decision_period / control.command_period)
+        self._drive = DriveController()
+        self._budget = spec.step_budget
+        # Composer reads the observables once before the first episode.
+        self._layout: Layout | None = None
+        self._steps = 0
+        self._outcome = Outcome.RUNNING
+        self._scan = Scan(np.full(features.N_SENSORS, np.inf), np.zeros(features.N_SENSORS, bool), 0.0, 0.0, False)
+        self._pose = np.zeros(3)
+        self._phi = np.zeros(features.N_FEATURES, dtype=np.float32)
+        self._danger = np.zeros(features.N_SENSORS, dtype=np.int8)
+        self._progress = 0.0
+        self._observables = self._make_observables()
+
+    # -- composer wiring -------------------------------------------------------------
+
+    @property
+    def root_entity(self) -> NavigationArena:
+        return self._arena
+
+    @property
+    def robot(self) -> Robotino:
+        return self._robot
+
+    @property
+    def spec(self) -> TaskSpec:
+        return self._spec
+
+    @property
+    def physics_steps_per_control_step(self) -> int:
+        # Composer steps once per control step; before_step runs the rest (module doc).
+        return 1
+
+    @property
+    def observables(self):
+        return self._observables
+
+    @property
+    def task_observables(self):
+        return self._observables
+
+    def action_spec(self, physics) -> specs.DiscreteArray:
+        return specs.DiscreteArray(num_values=features.N_ACTIONS, dtype=np.int64, name="action")
+
+    def get_reward_spec(self) -> specs.Array:
+        return specs.Array(shape=(), dtype=np.float64, name="reward")
+
+    def get_discount_spec(self) -> specs.BoundedArray:
+        return specs.BoundedArray(shape=(), dtype=np.float64, minimum=0.0, maximum=1.0, name="discount")
+
+    def _make_observables(self) -> dict[str, observable.Observable]:
+        obs = {
+            "features": lambda physics: self._phi.copy(),
+            "ranges": lambda physics: np.minimum(self._scan.ranges, self._spec.sensing.range),
+            "danger": lambda physics: self._danger.copy(),
+            "wall": lambda physics: self._scan.wall.astype(np.int8),
+            "pose": lambda physics: self._pose.copy(),
+            "target": lambda physics: np.asarray(self._spec.arena.target, dtype=np.float64),
+            "target_distance": lambda physics: np.float64(self._scan.target_distance),
+            "outcome": lambda physics: np.int32(self._outcome),
+            "steps": lambda physics: np.int32(self._steps),
+        }
+        out = {}
+        for name, fn in obs.items():
+            o = observable.Generic(fn)
+            o.enabled = True
+            out[name] = o
+        return out
+
+    # -- episode ---------------------------------------------------------------------
+
+    def after_compile(self, physics, random_state) -> None:
+        model, self._data = physics.model.ptr, physics.data.ptr
+        self._model = model
+        self._sensors = RangeSensors(
+            model,
+            self._arena.wall_mask(physics),
+            self._spec.robot.rays_per_sensor,
+            self._spec.sensing.range,
+            BODY_RADIUS,
+        )
+        self._ground_id = physics.bind(self._arena.ground_geom).element_id
+        self._base_id = physics.bind(self._robot.base_body).element_id
+        self._origin_id = physics.bind(self._robot.sensor_origin).element_id
+
+    def initialize_episode(self, physics, random_state) -> None:
+        self._layout = generate_layout(self._spec.arena, random_state, robot_radius=BODY_RADIUS)
+        self._arena.apply_layout(physics, self._layout)
+        x, y = self._layout.start
+        self._robot.set_pose(physics, x, y, self._layout.start_yaw)
+        self._drive.reset()
+        self._steps = 0
+        self._outcome = Outcome.RUNNING
+        mujoco.mj_forward(self._model, self._data)
+        self._distance = self._target_distance()
+        self._sense(physics)
+
+    def before_step(self, physics, action, random_state) -> None:
+        action = _checked_action(action)
+        control = self._spec.control
+        wheel_commands = self._drive.plan(
+            action, control.speed, control.decision_period, control.command_period, control.max_accel
+        )
+        moving = self._spec.arena.moving_obstacles > 0
+        last = self._commands_per_decision - 1
+        for k in range(self._commands_per_decision):
+            self._robot.set_wheel_speeds(physics, wheel_commands[k], control.command_period)
+            if moving:
+                self._arena.move_obstacles(physics, control.command_period)
+            # Composer takes the decision's very last substep itself.
+            n = self._substeps_per_command - (1 if k == last else 0)
+            if n:
+                mujoco.mj_step(self._model, self._data, n)
+            if self._check_outcome():
+                # Decided: hold the robot still for composer's final substep.
+                self._robot.set_wheel_speeds(physics, np.zeros(3))
+                break
+
+    def after_step(self, physics, random_state) -> None:
+        self._steps += 1
+        mujoco.mj_forward(self._model, self._data)
+        previous = self._distance
+        self._distance = self._target_distance()
+        self._progress = (previous - self._distance) / (self._spec.control.speed * self._spec.control.decision_period)
+        if self._outcome == Outcome.RUNNING:
+            self._check_outcome()
+        if self._outcome == Outcome.RUNNING and self._steps >= self._budget:
+            self._outcome = Outcome.TIMEOUT
+        self._sense(physics)
+
+    def should_terminate_episode(self, physics) -> bool:
+        return self._outcome != Outcome.RUNNING
+
+    def get_reward(self, physics) -> float:
+        bonus = {Outcome.TARGET: 1.0, Outcome.COLLISION: -1.0, Outcome.PHYSICS_ERROR: -1.0}
+        return float(self._progress + bonus.get(self._outcome, 0.0))
+
+    def get_discount(self, physics) -> float:
+        return 1.0 if self._outcome in (Outcome.RUNNING, Outcome.TIMEOUT) else 0.0
+
+    # -- state -----------------------------------------------------------------------
+
+    @property
+    def outcome(self) -> Outcome:
+        """How the current episode ended so far."""
+        return self._outcome
+
+    @property
+    def layout(self) -> Layout | None:
+        """The arena of the current episode."""
+        return self._layout
+
+    @property
+    def last_scan(self) -> Scan | None:
+        """The sensor reading behind the latest observation."""
+        return self._scan
+
+    def _target_distance(self) -> float:
+        x, y = self._data.xpos[self._base_id, :2]
+        tx, ty = self._layout.target
+        return math.hypot(tx - x, ty - y)
+
+    def _check_outcome(self) -> bool:
+        """Sets the outcome from the current contacts, position and warnings; True if decided."""
+        if any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS):
+            self._outcome = Outcome.PHYSICS_ERROR
+        elif self._in_collision():
+            self._outcome = Outcome.COLLISION
+        elif self._target_distance() <= self._spec.arena.target_radius:
+            self._outcome = Outcome.TARGET
+        return self._outcome != Outcome.RUNNING
+
+    def _in_collision(self) -> bool:
+        # Wheels touch the floor only through explicit pairs and nothing else
+        # touches the floor, so any contact without the floor is robot vs world.
+        ncon = self._data.ncon
+        if ncon == 0:
+            return False
+        geoms = self._data.contact.geom[:ncon]
+        return bool(np.any((geoms[:, 0] != self._ground_id) & (geoms[:, 1] != self._ground_id)))
+
+    def _sense(self, physics) -> None:
+        self._pose = self._robot.get_pose(physics)
+        origin = self._data.site_xpos[self._origin_id]
+        self._scan = self._sensors.scan(self._data, origin, float(self._pose[2]), np.asarray(self._layout.target))
+        sensing = self._spec.sensing
+        self._danger = features.danger_levels(self._scan.ranges, sensing.range, sensing.danger7_clearance)
+        region = features.target_region(self._scan.bearing)
+        self._phi = features.state_features(self._danger, self._scan.wall, region, self._scan.target_visible)
+
+
+def _checked_action(action) -> int:
+    a = np.asarray(action)
+    if a.shape != () or not np.issubdtype(a.dtype, np.integer) or not 0 <= int(a) < features.N_ACTIONS:
+        raise ValueError(
+            f"action must be one integer in 0..{features.N_ACTIONS - 1} "
+            f"({', '.join(f'{i} {n}' for i, n in enumerate(features.ACTION_NAMES))}), got {action!r}"
+        )
+    return int(a)
+
+
+def make_env(task: str | TaskSpec = "navigate", seed: int | np.random.RandomState | None = None) -> dm_env.Environment:
+    """Builds the navigation environment.
+
+    ``task`` is a name under ``tasks/``, a path to a TOML file, or a
+    :class:`~nirl_mj.spec.TaskSpec`; ``seed`` makes every episode's arena and
+    the whole run reproducible. Observations: ``features`` (16,) phi(s),
+    ``ranges`` (9,) clearance in metres (the sensing range where nothing is
+    sensed), ``danger`` (9,) levels 0..7, ``wall`` (9,) flags, ``pose`` (x, y,
+    yaw) metres/radians, ``target`` (x, y) metres, ``target_distance`` metres,
+    ``outcome`` (an :class:`Outcome`), ``steps`` decisions taken.
+    """
+    spec = load_task(task)
+    return composer.Environment(
+        task=NavigationTask(spec),
+        random_state=seed,
+        recompile_mjcf_every_episode=False,
+        raise_exception_on_physics_error=False,
+        strip_singleton_obs_buffer_dim=True,
+        legacy_step=False,
+    )

@@ -1,0 +1,122 @@
+"""Tests for nirl_mj.drive: omni kinematics, action profiles, rate limiting."""
+
+import math
+
+import numpy as np
+import pytest
+
+from nirl_mj import drive
+
+
+def test_constants() -> None:
+    assert drive.WHEEL_RADIUS == pytest.approx(0.040)
+    assert drive.WHEEL_DISTANCE == pytest.approx(0.132)
+    np.testing.assert_allclose(np.degrees(drive.WHEEL_ANGLES), [60, 180, 300])
+    assert [a.index for a in drive.ACTIONS] == list(range(6))
+
+
+def test_ik_fk_are_inverses() -> None:
+    rng = np.random.default_rng(0)
+    twists = rng.normal(size=(100, 3))
+    np.testing.assert_allclose(drive.body_twist(drive.wheel_speeds(twists)), twists, atol=1e-12)
+    omegas = rng.normal(size=(4, 5, 3)) * 50
+    np.testing.assert_allclose(drive.wheel_speeds(drive.body_twist(omegas)), omegas, atol=1e-9)
+
+
+def test_ik_known_values() -> None:
+    r, dist = drive.WHEEL_RADIUS, drive.WHEEL_DISTANCE
+    # Forward: the rear wheel (180 deg) does not turn, the front two counter-rotate.
+    om = drive.wheel_speeds([1.0, 0.0, 0.0])
+    np.testing.assert_allclose(om, [-math.sqrt(3) / 2 / r, 0.0, math.sqrt(3) / 2 / r], atol=1e-12)
+    # Pure yaw: every wheel at L wz / R.
+    np.testing.assert_allclose(drive.wheel_speeds([0.0, 0.0, 2.0]), np.full(3, 2.0 * dist / r))
+
+
+def test_bad_shape() -> None:
+    with pytest.raises(ValueError, match="shape"):
+        drive.wheel_speeds([1.0, 2.0])
+
+
+@pytest.mark.parametrize("action", range(6))
+@pytest.mark.parametrize("speed", [1.0, 2.0, 3.0])
+def test_action_profile_integrates_exactly(action: int, speed: float) -> None:
+    cmd_dt, period = 0.01, 0.5
+    prof = drive.action_profile(action, speed, period, cmd_dt, 4.0)
+    assert prof.shape == (50, 3)
+    act = drive.ACTIONS[action]
+    np.testing.assert_allclose(prof[:, 0], act.direction * speed)
+    np.testing.assert_allclose(prof[:, 1], 0.0)
+    assert prof[:, 2].sum() * cmd_dt == pytest.approx(act.turn, abs=1e-12)
+    # Starts and ends at (almost) zero yaw rate; yaw accel within the rim limit.
+    yaw_accel = np.abs(np.diff(np.concatenate([[0.0], prof[:, 2], [0.0]]))) / cmd_dt
+    assert yaw_accel.max() * drive.WHEEL_DISTANCE <= 4.0 + 1e-9
+    if act.turn:
+        assert np.all(np.sign(prof[:, 2]) * np.sign(act.turn) >= 0)
+
+
+def test_action_profile_other_periods() -> None:
+    prof = drive.action_profile(2, 1.0, period=0.3, cmd_dt=0.007, max_accel=8.0)
+    assert prof.shape == (round(0.3 / 0.007), 3)
+    assert prof[:, 2].sum() * 0.007 == pytest.approx(math.radians(60), abs=1e-12)
+
+
+def test_action_profile_infeasible_turn() -> None:
+    with pytest.raises(ValueError, match="cannot turn 60.0 deg"):
+        drive.action_profile(2, 2.0, period=0.5, cmd_dt=0.01, max_accel=1.0)
+
+
+@pytest.mark.parametrize("bad", [-1, 6, 2.0, "left", True])
+def test_bad_action(bad) -> None:
+    with pytest.raises(ValueError, match="0..5"):
+        drive.action_profile(bad, 2.0)
+
+
+def test_rate_limit_respects_limit() -> None:
+    rng = np.random.default_rng(1)
+    targets = rng.uniform(-80, 80, size=(200, 3))
+    limit, dt = 100.0, 0.01
+    out = drive.rate_limit(np.zeros(3), targets, limit, dt)
+    steps = np.abs(np.diff(np.vstack([np.zeros(3), out]), axis=0))
+    assert steps.max() <= limit * dt + 1e-9
+    # Reachable targets are reached exactly.
+    out = drive.rate_limit([1.0, 2.0, 3.0], [[1.5, 2.0, 2.9]], limit, dt)
+    np.testing.assert_allclose(out, [[1.5, 2.0, 2.9]])
+
+
+def test_rate_limit_keeps_direction() -> None:
+    # The whole step is scaled, so the commanded twist keeps its direction.
+    target = drive.wheel_speeds([2.0, 0.0, 0.0])
+    out = drive.rate_limit(np.zeros(3), target[None], 100.0, 0.01)[0]
+    twist = drive.body_twist(out)
+    assert twist[0] > 0
+    np.testing.assert_allclose(twist[1:], 0.0, atol=1e-12)
+
+
+def test_controller_forward_to_backward_takes_time() -> None:
+    ctl = drive.DriveController()
+    fwd = ctl.plan(0, 2.0)
+    np.testing.assert_allclose(ctl.last, fwd[-1])
+    assert drive.body_twist(fwd[-1])[0] == pytest.approx(2.0)  # 0.5 s at 4 m/s^2 reaches 2 m/s
+    back = ctl.plan(5, 2.0)
+    vx = drive.body_twist(back)[:, 0]
+    assert vx[0] > 1.9  # cannot reverse in one command period
+    assert np.all(np.diff(vx) <= 1e-12)
+    # The limit is on the wheel rims (0.87 |dvx| for the front wheels), so the
+    # body decelerates at 4 / 0.87 m/s^2 and is still far from -2 m/s.
+    assert -1.0 < vx[-1] < 0.0
+    steps = np.abs(np.diff(np.vstack([fwd[-1], back]), axis=0))
+    assert steps.max() <= 4.0 / drive.WHEEL_RADIUS * 0.01 + 1e-9
+    ctl.reset()
+    np.testing.assert_allclose(ctl.last, 0.0)
+
+
+def test_controller_turn_from_cruise_is_exact() -> None:
+    # From steady forward motion the yaw profile already respects the limit,
+    # so the rate limiter leaves it untouched and the turn angle is exact.
+    ctl = drive.DriveController()
+    ctl.plan(0, 2.0)
+    ctl.plan(0, 2.0)
+    for action in (1, 2, 3, 4):
+        cmds = ctl.plan(action, 2.0)
+        yaw = drive.body_twist(cmds)[:, 2].sum() * 0.01
+        assert yaw == pytest.approx(drive.ACTIONS[action].turn, abs=1e-9)

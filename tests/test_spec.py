@@ -1,0 +1,80 @@
+"""Task files: defaults, round trip, and one clear error per kind of bad input."""
+
+import math
+
+import pytest
+
+from nirl_mj import spec
+from nirl_mj.spec import SpecError
+
+
+def test_shipped_tasks_load():
+    navigate = spec.load_task("navigate")
+    assert navigate.arena.static_obstacles == 20
+    assert navigate.control.speed == 2.0
+    assert navigate.arena.moving_obstacles == 0
+    dynamic = spec.load_task("dynamic")
+    assert (dynamic.arena.static_obstacles, dynamic.arena.moving_obstacles) == (10, 10)
+
+
+def test_name_path_and_object_are_equivalent():
+    by_name = spec.load_task("navigate")
+    by_path = spec.load_task(spec.TASKS_DIR / "navigate.toml")
+    assert by_name == by_path
+    assert spec.load_task(by_name) is by_name
+
+
+def test_to_dict_round_trip_keeps_degrees_in_files():
+    s = spec.from_dict(
+        {"arena": {"start_yaw": 90, "obstacles": [{"shape": "box", "position": [3, 4], "size": [1, 2], "yaw": 30}]}}
+    )
+    assert s.arena.start_yaw == pytest.approx(math.pi / 2)
+    assert s.arena.obstacles[0].yaw == pytest.approx(math.radians(30))
+    plain = s.to_dict()
+    assert plain["arena"]["obstacles"][0]["yaw"] == pytest.approx(30)
+    assert spec.from_dict(plain) == s
+
+
+def test_step_budget_is_three_straight_line_times_by_default():
+    s = spec.load_task("navigate")
+    # 113.1 m at 1 m per decision, times 3.
+    assert s.step_budget == math.ceil(3 * math.hypot(80, 80) / 1.0)
+    assert spec.replace(s, control={"step_budget": 7}).step_budget == 7
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"arena": {"static_obstacles": -1}}, "arena.static_obstacles = -1: must be >= 0"),
+        ({"control": {"speed": 0}}, "control.speed = 0.0: must be > 0.0"),
+        ({"control": {"speed": -2}}, "control.speed = -2.0: must be > 0.0"),
+        ({"robot": {"drive": "wheels"}}, "accepted: tyre, rollers, planar"),
+        ({"arena": {"colour": "red"}}, "unknown key(s) colour; accepted: size, start"),
+        ({"sensors": {}}, "unknown key(s) sensors; accepted: name, description, arena"),
+        ({"arena": {"static_obstacles": 2.5}}, "expected a whole number"),
+        ({"arena": {"start": [10]}}, "expected a list of 2 numbers"),
+        ({"arena": {"start": [150, 10]}}, "must lie inside the arena"),
+        ({"arena": {"start_yaw": "north"}}, "accepted: target, random or degrees"),
+        ({"arena": {"obstacles": [{"shape": "cylinder", "size": [1, 2]}]}}, "a cylinder takes [radius] > 0"),
+        ({"arena": {"obstacles": [{"shape": "cone"}]}}, "accepted: box, cylinder, wall"),
+        ({"arena": {"obstacle_size": [3, 1]}}, "expected [min, max] with 0 < min <= max"),
+        ({"sensing": {"range": 1.0, "danger7_clearance": 2.0}}, "must be < range"),
+        ({"control": {"decision_period": 0.505}}, "whole multiple of command_period"),
+    ],
+)
+def test_bad_values_name_the_field_and_what_is_accepted(data, message):
+    with pytest.raises(SpecError) as err:
+        spec.from_dict(data, "t.toml")
+    assert message in str(err.value)
+    assert str(err.value).startswith("t.toml")
+
+
+def test_unknown_task_lists_the_shipped_ones(tmp_path):
+    with pytest.raises(SpecError, match="navigate"):
+        spec.load_task("no-such-task")
+    with pytest.raises(SpecError, match="not found"):
+        spec.load_task(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[arena\n")
+    with pytest.raises(SpecError, match="not valid TOML"):
+        spec.load_task(bad)
