@@ -1,10 +1,11 @@
 """Environment throughput against a bare mj_step loop over the same simulated time.
 
 For every drive fidelity and 20 and 50 obstacles: decisions per second of
-``env.step`` (resets excluded, timed separately), the simulated-time speed-up
-over real time, and the ratio to a bare ``mujoco.mj_step`` loop (one call per
-physics step, constant wheel commands) on the same compiled model for the same
-number of physics steps. One process, one core. Writes docs/PERFORMANCE.md.
+``env.step`` driven by the rule policy (resets excluded, timed separately), the
+simulated-time speed-up over real time, and the ratio to a bare
+``mujoco.mj_step`` loop (one call per physics step) that replays every
+decision from the same start state with the same simulated time on the same
+compiled model. One process, one core. Writes docs/PERFORMANCE.md.
 
     python bench/bench_env.py [--decisions 2000]
 """
@@ -28,13 +29,20 @@ except ImportError:  # run as a module
 
 
 def measure(drive: str, obstacles: int, decisions: int, seed: int = 0) -> dict:
+    """Times ``env.step`` and, interleaved with it so that machine noise hits both
+    alike, a bare ``mj_step`` loop replaying the same decision from the same state."""
     spec = specs.replace(
         specs.load_task("navigate"), robot={"drive": drive}, arena={"static_obstacles": obstacles}
     )
     env = make_env(spec, seed=seed)
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    substeps = round(spec.control.decision_period / spec.control.physics_timestep)
+    what = mujoco.mjtState.mjSTATE_INTEGRATION
+    before = np.empty(mujoco.mj_stateSize(model, what))
+    after = np.empty_like(before)
     timestep = env.reset()
-    step_time = reset_time = 0.0
-    resets = 0
+    step_time = bare_time = reset_time = 0.0
+    resets = timed = 0
     for _ in range(decisions):
         if timestep.last():
             t0 = time.perf_counter()
@@ -42,25 +50,32 @@ def measure(drive: str, obstacles: int, decisions: int, seed: int = 0) -> dict:
             reset_time += time.perf_counter() - t0
             resets += 1
         action = rule_policy(timestep.observation["features"])
+        mujoco.mj_getState(model, data, before, what)
         t0 = time.perf_counter()
         timestep = env.step(action)
-        step_time += time.perf_counter() - t0
-    physics = env.physics
-    n_physics = decisions * round(spec.control.decision_period / spec.control.physics_timestep)
-    model, data = physics.model.ptr, physics.data.ptr
-    env.reset()
-    env.task.robot.set_wheel_speeds(physics, np.array([10.0, 0.0, -10.0]), spec.control.command_period)
-    t0 = time.perf_counter()
-    for _ in range(n_physics):
-        mujoco.mj_step(model, data)
-    bare_time = time.perf_counter() - t0
-    sim_time = decisions * spec.control.decision_period
+        elapsed = time.perf_counter() - t0
+        if timestep.last():
+            continue  # a decision cut short by its outcome is not a full one
+        step_time += elapsed
+        timed += 1
+        # Replay: same start state, the decision's final wheel commands, same simulated time.
+        mujoco.mj_getState(model, data, after, what)
+        ctrl = data.ctrl.copy()
+        mujoco.mj_setState(model, data, before, what)
+        data.ctrl[:] = ctrl
+        t0 = time.perf_counter()
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
+        bare_time += time.perf_counter() - t0
+        mujoco.mj_setState(model, data, after, what)
+        mujoco.mj_forward(model, data)
+    sim_time = timed * spec.control.decision_period
     return {
         "drive": drive,
         "obstacles": obstacles,
-        "decisions_per_s": decisions / step_time,
+        "decisions_per_s": timed / step_time,
         "realtime": sim_time / step_time,
-        "bare_steps_per_s": n_physics / bare_time,
+        "bare_steps_per_s": timed * substeps / bare_time,
         "env_vs_bare": bare_time / step_time,
         "reset_ms": 1e3 * reset_time / max(resets, 1),
     }

@@ -26,6 +26,7 @@ class Scan:
     """One reading of all sensors.
 
     ``ranges`` (9,) clearance in metres, ``inf`` where nothing is within range;
+    ``rays`` (9 * rays_per_sensor,) the same for every ray, sensor-major;
     ``wall`` (9,) bool, the nearest hit of that sensor is a wall; ``bearing`` of
     the target in radians counter-clockwise from the front; ``target_distance``
     in metres from the robot's centre; ``target_visible`` the target is within
@@ -33,6 +34,7 @@ class Scan:
     """
 
     ranges: np.ndarray
+    rays: np.ndarray
     wall: np.ndarray
     bearing: float
     target_distance: float
@@ -98,15 +100,16 @@ class RangeSensors:
             n + 1,
             self._cutoff,
         )
-        dist = np.where(self._geomid[:n] >= 0, self._dist[:n], np.inf).reshape(features.N_SENSORS, self._k)
+        rays = np.where(self._geomid[:n] >= 0, self._dist[:n] - self._body_radius, np.inf)
+        rays = np.where(rays < self._range, np.maximum(rays, 0.0), np.inf)
+        dist = rays.reshape(features.N_SENSORS, self._k)
         nearest = np.argmin(dist, axis=1)
         rows = np.arange(features.N_SENSORS)
-        clearance = dist[rows, nearest] - self._body_radius
-        hit = clearance < self._range
-        ranges = np.where(hit, np.maximum(clearance, 0.0), np.inf)
+        ranges = dist[rows, nearest]
+        hit = np.isfinite(ranges)
         nearest_geom = self._geomid[:n].reshape(features.N_SENSORS, self._k)[rows, nearest]
         wall = hit & self._wall_mask[np.maximum(nearest_geom, 0)]
         blocked = self._geomid[n] >= 0 and self._dist[n] < target_distance
         visible = target_distance - self._body_radius <= self._range and not blocked
         bearing = float(np.arctan2(to_target[1], to_target[0]) - yaw)
-        return Scan(ranges, wall, bearing, target_distance, bool(visible))
+        return Scan(ranges, rays, wall, bearing, target_distance, bool(visible))

@@ -77,7 +77,10 @@ class NavigationTask(composer.Task):
         self._layout: Layout | None = None
         self._steps = 0
         self._outcome = Outcome.RUNNING
-        self._scan = Scan(np.full(features.N_SENSORS, np.inf), np.zeros(features.N_SENSORS, bool), 0.0, 0.0, False)
+        n_rays = features.N_SENSORS * spec.robot.rays_per_sensor
+        self._scan = Scan(
+            np.full(features.N_SENSORS, np.inf), np.full(n_rays, np.inf), np.zeros(features.N_SENSORS, bool), 0.0, 0.0, False
+        )
         self._pose = np.zeros(3)
         self._phi = np.zeros(features.N_FEATURES, dtype=np.float32)
         self._danger = np.zeros(features.N_SENSORS, dtype=np.int8)
@@ -124,11 +127,13 @@ class NavigationTask(composer.Task):
         obs = {
             "features": lambda physics: self._phi.copy(),
             "ranges": lambda physics: np.minimum(self._scan.ranges, self._spec.sensing.range),
+            "rays": lambda physics: np.minimum(self._scan.rays, self._spec.sensing.range),
             "danger": lambda physics: self._danger.copy(),
             "wall": lambda physics: self._scan.wall.astype(np.int8),
             "pose": lambda physics: self._pose.copy(),
             "target": lambda physics: np.asarray(self._spec.arena.target, dtype=np.float64),
             "target_distance": lambda physics: np.float64(self._scan.target_distance),
+            "target_bearing": lambda physics: np.float64(_wrap(self._scan.bearing)),
             "outcome": lambda physics: np.int32(self._outcome),
             "steps": lambda physics: np.int32(self._steps),
         }
@@ -261,6 +266,11 @@ class NavigationTask(composer.Task):
         self._phi = features.state_features(self._danger, self._scan.wall, region, self._scan.target_visible)
 
 
+def _wrap(angle: float) -> float:
+    """Angle in radians wrapped to (-pi, pi]."""
+    return math.pi - (math.pi - angle) % (2 * math.pi)
+
+
 def _checked_action(action) -> int:
     a = np.asarray(action)
     if a.shape != () or not np.issubdtype(a.dtype, np.integer) or not 0 <= int(a) < features.N_ACTIONS:
@@ -278,8 +288,11 @@ def make_env(task: str | TaskSpec = "navigate", seed: int | np.random.RandomStat
     :class:`~nirl_mj.spec.TaskSpec`; ``seed`` makes every episode's arena and
     the whole run reproducible. Observations: ``features`` (16,) phi(s),
     ``ranges`` (9,) clearance in metres (the sensing range where nothing is
-    sensed), ``danger`` (9,) levels 0..7, ``wall`` (9,) flags, ``pose`` (x, y,
-    yaw) metres/radians, ``target`` (x, y) metres, ``target_distance`` metres,
+    sensed), ``rays`` (9 * rays_per_sensor,) the same per ray (sensor-major,
+    ray angles in :func:`nirl_mj.sensing.ray_angles`), ``danger`` (9,) levels
+    0..7, ``wall`` (9,) flags, ``pose`` (x, y, yaw) metres/radians, ``target``
+    (x, y) metres, ``target_distance`` metres, ``target_bearing`` radians in
+    (-pi, pi] counter-clockwise from the robot's front,
     ``outcome`` (an :class:`Outcome`), ``steps`` decisions taken.
     """
     spec = load_task(task)
