@@ -97,7 +97,8 @@ def main() -> None:
                 f"env/bare {r['env_vs_bare']:.0%}, reset {r['reset_ms']:.1f} ms"
             )
     table = [
-        "| drive | obstacles | decisions/s | x real time | bare mj_step steps/s | env throughput / bare | reset (ms) |",
+        "| drive | obstacles | decisions/s | x real time | bare mj_step steps/s "
+        "| env throughput / bare | reset (ms) |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:

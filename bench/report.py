@@ -12,7 +12,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
-_HEADER = "# Performance\n\nEach section is written by the benchmark named in it; rerun the command to refresh it.\n"
+_HEADER = (
+    "# Performance\n\nEach section is written by the benchmark named in it; "
+    "rerun the command to refresh it.\n"
+)
 
 
 def machine() -> str:
@@ -32,8 +35,12 @@ def machine() -> str:
 
 def git_commit() -> str:
     try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True)
-        dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout.strip()
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain"], capture_output=True, text=True
+        ).stdout.strip()
         return out.stdout.strip() + ("+uncommitted" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
@@ -48,7 +55,11 @@ def write_section(name: str, body: str) -> None:
     section = f"## {name}\n\n{stamp}{body.strip()}\n"
     text = PERFORMANCE_MD.read_text() if PERFORMANCE_MD.exists() else _HEADER
     pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.S | re.M)
-    text = pattern.sub(lambda _: section + "\n", text) if pattern.search(text) else text.rstrip() + "\n\n" + section
+    text = (
+        pattern.sub(lambda _: section + "\n", text)
+        if pattern.search(text)
+        else text.rstrip() + "\n\n" + section
+    )
     PERFORMANCE_MD.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=PERFORMANCE_MD.parent, suffix=".tmp")
     with os.fdopen(fd, "w") as f:

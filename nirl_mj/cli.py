@@ -29,7 +29,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         bar.update()
         bar.write(
             f"episode {result.episode:3d}  seed {result.seed:10d}  {result.outcome:13s} "
-            f"steps {result.steps:4d}  path {result.path_length:6.1f} m  to target {result.final_distance:6.1f} m",
+            f"steps {result.steps:4d}  path {result.path_length:6.1f} m  "
+            f"to target {result.final_distance:6.1f} m",
             file=sys.stdout,
         )
     bar.close()

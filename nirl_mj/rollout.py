@@ -55,7 +55,9 @@ def run_episode(env: dm_env.Environment, policy: Policy, seed: int, episode: int
     )
 
 
-def run_episodes(env: dm_env.Environment, policy: Policy, seed: int, episodes: int) -> Iterator[EpisodeResult]:
+def run_episodes(
+    env: dm_env.Environment, policy: Policy, seed: int, episodes: int
+) -> Iterator[EpisodeResult]:
     """Yields the results of ``episodes`` episodes, episode i in the arena of ``episode_seed(seed, i)``."""
     for i in range(episodes):
         yield run_episode(env, policy, episode_seed(seed, i), i)

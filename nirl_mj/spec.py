@@ -159,9 +159,7 @@ def _convert(cls: type, data: Any, where: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - set(fields))
     if unknown:
-        raise SpecError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; accepted: {', '.join(fields)}"
-        )
+        raise SpecError(f"{where}: unknown key(s) {', '.join(unknown)}; accepted: {', '.join(fields)}")
     hints = typing.get_type_hints(cls)
     kwargs = {}
     for name, value in data.items():
@@ -206,7 +204,9 @@ def _convert_type(hint: Any, value: Any, where: str) -> Any:
             return tuple(_convert_type(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
             raise SpecError(f"{where} = {value!r}: expected a list of {len(args)} numbers")
-        return tuple(_convert_type(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+        return tuple(
+            _convert_type(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True))
+        )
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise SpecError(f"{where} = {value!r}: expected a number")
@@ -254,7 +254,10 @@ def _check_object(obj: Any, where: str) -> None:
                 f"{where}.danger7_clearance = {obj.danger7_clearance}: must be < range ({obj.range})"
             )
     elif isinstance(obj, ControlSpec):
-        for name, period in (("decision_period", obj.decision_period), ("command_period", obj.command_period)):
+        for name, period in (
+            ("decision_period", obj.decision_period),
+            ("command_period", obj.command_period),
+        ):
             base = obj.physics_timestep if name == "command_period" else obj.command_period
             ratio = period / base
             if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

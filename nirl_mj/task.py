@@ -68,7 +68,9 @@ class NavigationTask(composer.Task):
         # Composer's base arena asks for noslip iterations; the drive models are
         # tuned without them and they cost about 20 % of the step time.
         self._arena.mjcf_model.option.noslip_iterations = 0
-        self.set_timesteps(control_timestep=control.decision_period, physics_timestep=control.physics_timestep)
+        self.set_timesteps(
+            control_timestep=control.decision_period, physics_timestep=control.physics_timestep
+        )
         self._substeps_per_command = round(control.command_period / control.physics_timestep)
         self._commands_per_decision = round(control.decision_period / control.command_period)
         self._drive = DriveController()
@@ -79,7 +81,12 @@ class NavigationTask(composer.Task):
         self._outcome = Outcome.RUNNING
         n_rays = features.N_SENSORS * spec.robot.rays_per_sensor
         self._scan = Scan(
-            np.full(features.N_SENSORS, np.inf), np.full(n_rays, np.inf), np.zeros(features.N_SENSORS, bool), 0.0, 0.0, False
+            np.full(features.N_SENSORS, np.inf),
+            np.full(n_rays, np.inf),
+            np.zeros(features.N_SENSORS, bool),
+            0.0,
+            0.0,
+            False,
         )
         self._pose = np.zeros(3)
         self._phi = np.zeros(features.N_FEATURES, dtype=np.float32)
@@ -198,7 +205,9 @@ class NavigationTask(composer.Task):
         mujoco.mj_forward(self._model, self._data)
         previous = self._distance
         self._distance = self._target_distance()
-        self._progress = (previous - self._distance) / (self._spec.control.speed * self._spec.control.decision_period)
+        self._progress = (previous - self._distance) / (
+            self._spec.control.speed * self._spec.control.decision_period
+        )
         if self._outcome == Outcome.RUNNING:
             self._check_outcome()
         if self._outcome == Outcome.RUNNING and self._steps >= self._budget:
@@ -259,7 +268,9 @@ class NavigationTask(composer.Task):
     def _sense(self, physics) -> None:
         self._pose = self._robot.get_pose(physics)
         origin = self._data.site_xpos[self._origin_id]
-        self._scan = self._sensors.scan(self._data, origin, float(self._pose[2]), np.asarray(self._layout.target))
+        self._scan = self._sensors.scan(
+            self._data, origin, float(self._pose[2]), np.asarray(self._layout.target)
+        )
         sensing = self._spec.sensing
         self._danger = features.danger_levels(self._scan.ranges, sensing.range, sensing.danger7_clearance)
         region = features.target_region(self._scan.bearing)
@@ -281,7 +292,9 @@ def _checked_action(action) -> int:
     return int(a)
 
 
-def make_env(task: str | TaskSpec = "navigate", seed: int | np.random.RandomState | None = None) -> dm_env.Environment:
+def make_env(
+    task: str | TaskSpec = "navigate", seed: int | np.random.RandomState | None = None
+) -> dm_env.Environment:
     """Builds the navigation environment.
 
     ``task`` is a name under ``tasks/``, a path to a TOML file, or a

@@ -36,7 +36,20 @@ def test_danger_is_monotone_in_clearance():
 
 @pytest.mark.parametrize(
     ("degrees", "region"),
-    [(0, 1), (19.9, 1), (20.1, 2), (40, 2), (80, 3), (160, 5), (200, 6), (-40, 9), (-20.1, 9), (339, 9), (340, 1), (720, 1)],
+    [
+        (0, 1),
+        (19.9, 1),
+        (20.1, 2),
+        (40, 2),
+        (80, 3),
+        (160, 5),
+        (200, 6),
+        (-40, 9),
+        (-20.1, 9),
+        (339, 9),
+        (340, 1),
+        (720, 1),
+    ],
 )
 def test_target_region(degrees, region):
     assert features.target_region(np.deg2rad(degrees)) == region

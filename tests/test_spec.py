@@ -26,7 +26,12 @@ def test_name_path_and_object_are_equivalent():
 
 def test_to_dict_round_trip_keeps_degrees_in_files():
     s = spec.from_dict(
-        {"arena": {"start_yaw": 90, "obstacles": [{"shape": "box", "position": [3, 4], "size": [1, 2], "yaw": 30}]}}
+        {
+            "arena": {
+                "start_yaw": 90,
+                "obstacles": [{"shape": "box", "position": [3, 4], "size": [1, 2], "yaw": 30}],
+            }
+        }
     )
     assert s.arena.start_yaw == pytest.approx(math.pi / 2)
     assert s.arena.obstacles[0].yaw == pytest.approx(math.radians(30))
@@ -78,3 +83,23 @@ def test_unknown_task_lists_the_shipped_ones(tmp_path):
     bad.write_text("[arena\n")
     with pytest.raises(SpecError, match="not valid TOML"):
         spec.load_task(bad)
+
+
+def test_every_spec_field_is_documented_in_docs_tasks_md():
+    import dataclasses
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "TASKS.md").read_text()
+    for cls in (
+        spec.TaskSpec,
+        spec.ArenaSpec,
+        spec.ObstacleSpec,
+        spec.RobotSpec,
+        spec.SensingSpec,
+        spec.ControlSpec,
+    ):
+        for f in dataclasses.fields(cls):
+            if dataclasses.is_dataclass(f.type) or f.name in ("arena", "robot", "sensing", "control"):
+                assert f"`[{f.name}]`" in text, f"section [{f.name}] is not documented in docs/TASKS.md"
+                continue
+            assert f"| `{f.name}` |" in text, f"{cls.__name__}.{f.name} is not documented in docs/TASKS.md"
