@@ -60,7 +60,9 @@ class MapReport:
         return asdict(self)
 
 
-def _prior_fractions(prior: str | Sequence[float] | np.ndarray | None, action_counts: np.ndarray) -> list[Fraction]:
+def _prior_fractions(
+    prior: str | Sequence[float] | np.ndarray | None, action_counts: np.ndarray
+) -> list[Fraction]:
     """P(a) as exact fractions (floats are converted exactly)."""
     if prior is None or (isinstance(prior, str) and prior == "uniform"):
         return [Fraction(1, N_ACTIONS)] * N_ACTIONS
@@ -68,7 +70,9 @@ def _prior_fractions(prior: str | Sequence[float] | np.ndarray | None, action_co
         if prior == "empirical":
             total = int(action_counts.sum())
             return [Fraction(int(c), total) if total else Fraction(1, N_ACTIONS) for c in action_counts]
-        raise ValueError(f"prior must be None, 'uniform', 'empirical' or {N_ACTIONS} probabilities, got {prior!r}")
+        raise ValueError(
+            f"prior must be None, 'uniform', 'empirical' or {N_ACTIONS} probabilities, got {prior!r}"
+        )
     try:
         p = np.asarray(prior, dtype=np.float64)
     except (TypeError, ValueError):

@@ -1,15 +1,16 @@
-"""Running a policy for whole episodes, each in its own seeded arena."""
+"""Running an agent for whole episodes, each in its own seeded arena, recording trajectories."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
 
 import dm_env
 import numpy as np
 
-from nirl_mj.policies import Policy
+from nirl_mj.experts import Expert
+from nirl_mj.policies import POLICIES, Policy
 from nirl_mj.task import Outcome
+from nirl_mj.trajectory import Trajectory, TrajectoryRecorder
 
 
 def episode_seed(seed: int, episode: int) -> int:
@@ -18,62 +19,49 @@ def episode_seed(seed: int, episode: int) -> int:
     return int(np.random.SeedSequence([seed, episode]).generate_state(1)[0])
 
 
-@dataclass(frozen=True)
-class EpisodeResult:
-    """Outcome of one episode: ``steps`` decisions, ``path_length`` metres travelled."""
+class PolicyAgent:
+    """A policy on phi(s) (``nirl_mj.policies``) behind the :class:`~nirl_mj.experts.Expert` interface."""
 
-    episode: int
-    seed: int
-    outcome: str
-    steps: int
-    path_length: float
-    final_distance: float
+    def __init__(self, policy: Policy, kind: str) -> None:
+        self.policy = policy
+        self.kind = kind
 
-    def to_dict(self) -> dict:
-        return asdict(self)
+    @classmethod
+    def named(cls, name: str) -> PolicyAgent:
+        """One of the reference policies in ``nirl_mj.policies.POLICIES``."""
+        return cls(POLICIES[name], name)
+
+    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
+        pass
+
+    def act(self, timestep: dm_env.TimeStep) -> int:
+        return self.policy(timestep.observation["features"])
 
 
-def run_episode(env: dm_env.Environment, policy: Policy, seed: int, episode: int = 0) -> EpisodeResult:
-    """Runs ``policy`` on phi(s) for one episode in the arena of ``seed``."""
+def run_episode(env: dm_env.Environment, agent: Expert, seed: int) -> Trajectory:
+    """Runs ``agent`` for one episode in the arena of ``seed`` and returns what it did."""
+    task = env.task
     env.random_state.seed(seed)
     timestep = env.reset()
-    xy = timestep.observation["pose"][:2].copy()
-    length = 0.0
+    agent.reset(env, timestep)
+    recorder = TrajectoryRecorder(task.spec.control.decision_period)
+    recorder.start(timestep.observation)
     while not timestep.last():
-        timestep = env.step(policy(timestep.observation["features"]))
-        new_xy = timestep.observation["pose"][:2]
-        length += float(np.hypot(*(new_xy - xy)))
-        xy = new_xy.copy()
-    obs = timestep.observation
-    return EpisodeResult(
-        episode=episode,
-        seed=seed,
-        outcome=Outcome(int(obs["outcome"])).name.lower(),
-        steps=int(obs["steps"]),
-        path_length=length,
-        final_distance=float(obs["target_distance"]),
-    )
+        action = agent.act(timestep)
+        timestep = env.step(action)
+        recorder.step(action, timestep.observation)
+    outcome = Outcome(int(timestep.observation["outcome"])).name.lower()
+    return recorder.finish(outcome, seed, task.spec, task.spec.control.speed, agent.kind)
 
 
 def run_episodes(
-    env: dm_env.Environment, policy: Policy, seed: int, episodes: int
-) -> Iterator[EpisodeResult]:
-    """Yields the results of ``episodes`` episodes, episode i in the arena of ``episode_seed(seed, i)``."""
-    for i in range(episodes):
-        yield run_episode(env, policy, episode_seed(seed, i), i)
+    env: dm_env.Environment, agent: Expert, seed: int, episodes: int, first: int = 0
+) -> Iterator[Trajectory]:
+    """Yields episodes ``first .. first + episodes - 1``, episode i in the arena of ``episode_seed(seed, i)``."""
+    for i in range(first, first + episodes):
+        yield run_episode(env, agent, episode_seed(seed, i))
 
 
-def summarise(results: list[EpisodeResult]) -> dict:
-    """Success, collision, timeout and divergence rates (fractions) and mean steps."""
-    n = len(results)
-    count = {o.name.lower(): 0 for o in Outcome if o != Outcome.RUNNING}
-    for r in results:
-        count[r.outcome] += 1
-    return {
-        "episodes": n,
-        "success_rate": count["target"] / n if n else 0.0,
-        "collision_rate": count["collision"] / n if n else 0.0,
-        "timeout_rate": count["timeout"] / n if n else 0.0,
-        "physics_error_rate": count["physics_error"] / n if n else 0.0,
-        "mean_steps": float(np.mean([r.steps for r in results])) if n else 0.0,
-    }
+def path_length(trajectory: Trajectory) -> float:
+    """Metres travelled, summed over decisions."""
+    return float(np.sum(np.hypot(*np.diff(trajectory.poses[:, :2], axis=0).T)))

@@ -157,8 +157,7 @@ class Trajectory:
             got = getattr(self, name).shape
             if got != shape:
                 raise ValueError(
-                    f"Trajectory.{name}: expected shape {shape} for T = {t} actions "
-                    f"(T + 1 states), got {got}"
+                    f"Trajectory.{name}: expected shape {shape} for T = {t} actions (T + 1 states), got {got}"
                 )
         if t and (self.actions.min() < 0 or self.actions.max() >= N_ACTIONS):
             raise ValueError(f"Trajectory.actions: values must be in 0..{N_ACTIONS - 1}")
@@ -170,7 +169,9 @@ class Trajectory:
         put("arena_seed", seed)
         task = _task_dict(self.task)
         if not isinstance(task, dict):
-            raise ValueError(f"Trajectory.task: expected a TaskSpec.to_dict() dict, got {type(task).__name__}")
+            raise ValueError(
+                f"Trajectory.task: expected a TaskSpec.to_dict() dict, got {type(task).__name__}"
+            )
         put("task", task)
         try:
             speed = float(self.speed)
@@ -338,7 +339,9 @@ def _to_arrays(trajectories: Sequence[Trajectory]) -> dict[str, np.ndarray]:
     }
 
 
-def save_dataset(path: str | os.PathLike, trajectories: Sequence[Trajectory], overwrite: bool = False) -> Path:
+def save_dataset(
+    path: str | os.PathLike, trajectories: Sequence[Trajectory], overwrite: bool = False
+) -> Path:
     """Writes ``trajectories`` to ``path`` (exactly that name; no suffix is added) as an
     NPZ dataset; returns the path.
 
@@ -442,9 +445,10 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
         npz = np.load(path, allow_pickle=False)
     except (zipfile.BadZipFile, EOFError, OSError, zlib.error) as exc:
         raise DatasetError(f"{not_npz}: {exc}") from None
-    except ValueError as exc:
-        # np.load falls back to unpickling files that are neither .npy nor zip.
-        raise DatasetError(f"{not_npz}: {exc}") from None
+    except ValueError:
+        # np.load falls back to unpickling files that are neither .npy nor zip;
+        # its message (advice to allow pickles) would mislead here.
+        raise DatasetError(f"{not_npz}: it does not start with a zip or .npy header") from None
     if not isinstance(npz, np.lib.npyio.NpzFile):
         raise DatasetError(f"{not_npz}: it holds a single .npy array")
     arrays = {}
@@ -481,7 +485,8 @@ def _validate(a: Mapping[str, np.ndarray], where: str) -> None:
         fail(f"not an nirl-mj dataset: no 'format' entry (expected format {FORMAT!r}); keys: {sorted(a)}")
     fmt = _scalar_string(a["format"])
     if fmt != FORMAT:
-        fail(f"not an nirl-mj dataset: format is {fmt if fmt is not None else a['format']!r}, expected {FORMAT!r}")
+        shown = fmt if fmt is not None else a["format"]
+        fail(f"not an nirl-mj dataset: format is {shown!r}, expected {FORMAT!r}")
     if "version" not in a:
         fail("missing key 'version'")
     version = a["version"]
@@ -537,18 +542,15 @@ def _validate(a: Mapping[str, np.ndarray], where: str) -> None:
     times = check("times", "f", ("float64",), (None,))
 
     if np.any(lengths < 0):
-        fail(f"inconsistent lengths: negative trajectory length(s) in 'lengths' {lengths[lengths < 0][:5].tolist()}")
+        negative = lengths[lengths < 0][:5].tolist()
+        fail(f"inconsistent lengths: negative trajectory length(s) in 'lengths' {negative}")
     n_actions = int(lengths.sum())
     n_states = n_actions + n
     if actions.shape[0] != n_actions:
-        fail(
-            f"inconsistent lengths: 'actions' has {actions.shape[0]} rows but sum(lengths) = {n_actions}"
-        )
+        fail(f"inconsistent lengths: 'actions' has {actions.shape[0]} rows but sum(lengths) = {n_actions}")
     for key, arr in (("features", features), ("ranges", ranges), ("poses", poses), ("times", times)):
         if arr.shape[0] != n_states:
-            fail(
-                f"inconsistent lengths: {key!r} has {arr.shape[0]} rows but sum(lengths + 1) = {n_states}"
-            )
+            fail(f"inconsistent lengths: {key!r} has {arr.shape[0]} rows but sum(lengths + 1) = {n_states}")
 
     for key, arr in (("features", features), ("ranges", ranges), ("poses", poses), ("times", times)):
         bad = ~np.isfinite(arr)

@@ -24,3 +24,34 @@ class Expert(Protocol):
 
     def act(self, timestep: dm_env.TimeStep) -> int:
         """The action 0..5 for the current timestep."""
+
+
+EXPERT_KINDS = ("planner", "sensor", "noisy", "rule", "forward")
+"""Demonstrators by name: the map-aware planner, the sensor-based expert, either
+of them with noise, and the reference policies on phi(s)."""
+
+
+def make_expert(
+    kind: str, base: str = "sensor", slip: float = 0.1, random: float = 0.05, seed: int = 0
+) -> Expert:
+    """Builds a demonstrator by name; ``base``, ``slip``, ``random`` and ``seed`` configure
+    the noisy one (see :class:`nirl_mj.experts.noisy.NoisyExpert`)."""
+    if kind == "planner":
+        from nirl_mj.experts.planner import PlannerExpert
+
+        return PlannerExpert()
+    if kind == "sensor":
+        from nirl_mj.experts.sensor import SensorExpert
+
+        return SensorExpert()
+    if kind == "noisy":
+        from nirl_mj.experts.noisy import NoisyExpert
+
+        if base == "noisy" or base not in EXPERT_KINDS:
+            raise ValueError(f"noisy expert base {base!r}: accepted: planner, sensor, rule, forward")
+        return NoisyExpert(make_expert(base), slip=slip, random=random, seed=seed)
+    if kind in ("rule", "forward"):
+        from nirl_mj.rollout import PolicyAgent
+
+        return PolicyAgent.named(kind)
+    raise ValueError(f"unknown expert {kind!r}: accepted: {', '.join(EXPERT_KINDS)}")
