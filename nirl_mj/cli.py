@@ -145,6 +145,35 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_teleop(args: argparse.Namespace) -> int:
+    from nirl_mj.experts.teleop import __doc__ as keys_doc
+    from nirl_mj.experts.teleop import teleoperate
+    from nirl_mj.rollout import episode_seed
+    from nirl_mj.task import make_env
+    from nirl_mj.trajectory import save_dataset
+
+    out = Path(args.out)
+    _check_output(out, args.overwrite)
+    env = make_env(args.task)
+    print(keys_doc.split("\n\n", 2)[2], file=sys.stderr)
+    trajectories = []
+
+    def keep(trajectory) -> None:
+        trajectories.append(trajectory)
+        print(f"episode {len(trajectories)}: {_episode_line(trajectory)}")
+
+    try:
+        teleoperate(env, args.episodes, lambda i: episode_seed(args.seed, i), keep)
+    except KeyboardInterrupt:
+        print("interrupted: saving the finished episodes", file=sys.stderr)
+    if not trajectories:
+        print("no episode kept; nothing written", file=sys.stderr)
+        return 1
+    save_dataset(out, trajectories, overwrite=args.overwrite)
+    print(f"wrote {len(trajectories)} human demonstrations to {out}")
+    return 0
+
+
 def _cmd_task(args: argparse.Namespace) -> int:
     from nirl_mj.spec import load_task
 
@@ -215,6 +244,16 @@ def build_parser() -> argparse.ArgumentParser:
     demos.add_argument("--quiet", action="store_true", help="no progress bar")
     demos.set_defaults(func=_cmd_demos)
 
+    teleop = sub.add_parser(
+        "teleop", help="drive the robot from the keyboard in MuJoCo's viewer and record the episodes"
+    )
+    teleop.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    teleop.add_argument("--episodes", type=_positive_int, default=30)
+    teleop.add_argument("--seed", type=int, default=0)
+    teleop.add_argument("--out", required=True, help="dataset path (.npz)")
+    teleop.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    teleop.set_defaults(func=_cmd_teleop)
+
     inspect = sub.add_parser("inspect", help="validate a dataset file and print its summary")
     inspect.add_argument("path")
     inspect.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
@@ -235,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         return args.func(args)
-    except (SpecError, ArenaGenerationError, DatasetError, OSError) as exc:
+    except (SpecError, ArenaGenerationError, DatasetError, OSError, RuntimeError) as exc:
         print(f"nirl-mj {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

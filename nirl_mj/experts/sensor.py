@@ -67,8 +67,11 @@ _SECOND_SAMPLES = (17, 34, 50)
 # Planning-grid costs per metre: a cell holding a remembered hit, its
 # neighbours, free or unknown cells.
 _COST_HIT = 1000.0
-_COST_NEAR = 8.0
+_COST_NEAR = 20.0
 _COST_FREE = 1.0
+# Extra cost per decision already spent in a planning cell: a plan that led
+# into a trap gets more expensive every time, so repeated escapes go elsewhere.
+_COST_VISIT = 3.0
 _EIGHT = np.ones((3, 3), dtype=bool)
 
 
@@ -205,6 +208,8 @@ class SensorExpert:
         self._cost_to_go: np.ndarray | None = None
         self._planned_at = -1
         self._hits_since_plan = 0
+        ny, nx = self._occ.shape[0] // _COARSE, self._occ.shape[1] // _COARSE
+        self._visits = np.zeros((ny, nx))
 
     def act(self, timestep: dm_env.TimeStep) -> int:
         """The action 0..5 for this timestep (see the module doc)."""
@@ -214,6 +219,7 @@ class SensorExpert:
         xy, yaw = pose[:2], float(pose[2])
         self._observe_motion(xy)
         self._remember(xy, yaw, rays)
+        self._visits[self._coarse_cell(xy)] += 1.0
 
         to_target = self._target - xy
         distance = float(math.hypot(to_target[0], to_target[1]))
@@ -303,7 +309,7 @@ class SensorExpert:
         ny, nx = self._occ.shape[0] // _COARSE, self._occ.shape[1] // _COARSE
         hit = self._occ.reshape(ny, _COARSE, nx, _COARSE).any(axis=(1, 3))
         near = ndimage.binary_dilation(hit, structure=_EIGHT)
-        cost = np.where(hit, _COST_HIT, np.where(near, _COST_NEAR, _COST_FREE)).ravel()
+        cost = (np.where(hit, _COST_HIT, np.where(near, _COST_NEAR, _COST_FREE)) + _COST_VISIT * self._visits).ravel()
         graph, source = _lattice(ny, nx)
         # Reverse search from the target: an edge u -> v of the reversed path
         # costs what entering u costs on the way to the target.
@@ -323,8 +329,10 @@ class SensorExpert:
 
     def _escape_bearing(self, xy: np.ndarray, yaw: float) -> float:
         """Bearing (deg, from the front) of a waypoint ~6 m down the memory plan."""
-        # Replan when new obstacles were seen, at most every other decision.
-        if self._cost_to_go is None or (self._hits_since_plan > 0 and self._steps - self._planned_at >= 2):
+        # Replan when new obstacles were seen (at most every other decision)
+        # and every few decisions anyway, as the visit costs grow.
+        since = self._steps - self._planned_at
+        if self._cost_to_go is None or (self._hits_since_plan > 0 and since >= 2) or since >= 5:
             self._plan()
         field = self._cost_to_go
         ny, nx = field.shape
