@@ -31,7 +31,7 @@ def _print_predictability(trajectories: list) -> dict | None:
         return None
     p = predictability(trajectories)
     print(
-        f"predictability from phi(s) (logistic regression, first half -> second half): "
+        f"predictability from phi(s) (class-weighted logistic regression, first half -> second half): "
         f"balanced accuracy {p['balanced_accuracy']:.2f}, accuracy {p['accuracy']:.2f} "
         f"(majority action alone: {p['majority_share']:.2f})"
     )
@@ -99,8 +99,8 @@ def _cmd_demos(args: argparse.Namespace) -> int:
     expert = ExpertConfig(args.expert, args.base, args.slip, args.random_action, args.seed)
     workers = args.workers or default_workers()
     print(
-        f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, seed {args.seed}, "
-        f"{workers} worker(s)",
+        f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, "
+        f"seed {args.seed}, {workers} worker(s)",
         file=sys.stderr,
     )
     with tqdm(total=args.episodes, unit="episode", file=sys.stderr, disable=args.quiet) as bar:

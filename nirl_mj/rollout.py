@@ -57,7 +57,8 @@ def run_episode(env: dm_env.Environment, agent: Expert, seed: int) -> Trajectory
 def run_episodes(
     env: dm_env.Environment, agent: Expert, seed: int, episodes: int, first: int = 0
 ) -> Iterator[Trajectory]:
-    """Yields episodes ``first .. first + episodes - 1``, episode i in the arena of ``episode_seed(seed, i)``."""
+    """Yields episodes ``first .. first + episodes - 1``; episode i runs in the arena of
+    ``episode_seed(seed, i)``."""
     for i in range(first, first + episodes):
         yield run_episode(env, agent, episode_seed(seed, i))
 

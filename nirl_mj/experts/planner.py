@@ -9,9 +9,14 @@ the target: Dijkstra (``scipy.sparse.csgraph``) on an 8-connected occupancy
 grid of the static obstacles inflated by the robot radius plus the arena's
 ``path_margin`` (the inflation under which the generator guarantees a path),
 with cells close to obstacles made more expensive so that the plan runs down
-the middle of gaps. The field is sampled bilinearly; occupied and unreachable
-cells get the value of their nearest reachable cell plus a steep slope, so the
-field also pushes out of obstacles.
+the middle of gaps. To keep this cheap it first tries a 1 m grid (blocked
+half a cell further out); it moves to 0.5 m and then to the generator's own
+grid when the coarser one does not connect the start, when the robot finds
+itself where the coarse grid sees no path, or when the cost-to-go at the robot
+stops improving (re-planning). Between cell centres the field is read as one
+Dijkstra step (min over the 4 surrounding centres of value + distance), which
+has no spurious minima; blocked and unreachable cells hold their nearest
+reachable cell's value plus a steep slope, so the field pushes out of them.
 
 Per decision (:meth:`PlannerExpert.act`) it scores every two-decision action
 sequence (36) with a kinematic model of the arcs: the exact wheel commands the
@@ -24,8 +29,9 @@ Safe means every sampled pose keeps ``margin`` metres between the robot's
 outline and the static obstacles, the border walls and the moving obstacles
 (predicted with constant velocity, bouncing off the border walls). Among the
 safe sequences it takes the first action of the one ending lowest on the cost
-field (at the end point and one decision's travel ahead of it, so the heading
-counts), with a penalty for passing close to obstacles. With no safe sequence
+field (the value at the end point plus the field's slope along the final
+heading times one decision's travel, so the heading counts), with a penalty
+for passing close to obstacles. With no safe sequence
 it takes the one with the largest clearance, which is usually backing off.
 
 Speed: the arcs depend only on the speed, the timing and the wheel command
@@ -111,7 +117,9 @@ class ArcModel:
         if idx.size == 0 or idx[-1] != self.n_cmd - 1:
             idx = np.append(idx, self.n_cmd - 1)
         self._sample_idx = idx
-        self._profiles = [drive.wheel_speeds(drive.action_profile(a, speed, period, cmd_dt, max_accel)) for a in range(6)]
+        self._profiles = [
+            drive.wheel_speeds(drive.action_profile(a, speed, period, cmd_dt, max_accel)) for a in range(6)
+        ]
         self._segments: dict[tuple[bytes, int], tuple[np.ndarray, np.ndarray, float]] = {}
         self._states: dict[bytes, np.ndarray] = {}
         self._tables: dict[bytes, SequenceTable] = {}
@@ -235,20 +243,52 @@ class CostField:
 
     values: np.ndarray
     resolution: float
+    reachable: np.ndarray
+    """(ny, nx) bool: cells connected to the target (the others hold fill values)."""
+
+    def __post_init__(self) -> None:
+        # Flat copy and bounds for the hot path (frozen dataclass: object.__setattr__).
+        ny, nx = self.values.shape
+        object.__setattr__(self, "_flat", np.ascontiguousarray(self.values).ravel())
+        object.__setattr__(self, "_hi", (nx - 1.000001, ny - 1.000001))
 
     def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Bilinear interpolation at world points ``x``, ``y`` (metres, same shapes)."""
-        v = self.values
-        ny, nx = v.shape
-        u = np.clip(x / self.resolution - 0.5, 0.0, nx - 1.000001)
-        w = np.clip(y / self.resolution - 0.5, 0.0, ny - 1.000001)
+        """Cost-to-go (m) at world points ``x``, ``y`` (metres, same shapes).
+
+        ``min over the 4 surrounding cell centres c of values[c] + |p - c|``:
+        one Dijkstra step from the point. Unlike bilinear interpolation this
+        has no spurious minima where the plan passes diagonally between two
+        blocked cells (bilinear averages the blocked corners into a ridge
+        across the passage, and a greedy follower stalls in front of it).
+        """
+        flat = self._flat
+        nx = self.values.shape[1]
+        res = self.resolution
+        # np.minimum/np.maximum: np.clip's Python wrapper costs more than the work here.
+        u = np.minimum(np.maximum(x * (1.0 / res) - 0.5, 0.0), self._hi[0])
+        w = np.minimum(np.maximum(y * (1.0 / res) - 0.5, 0.0), self._hi[1])
         j = u.astype(np.intp)
         i = w.astype(np.intp)
+        # Offsets (cell sides) of the point from its lower-left centre and the other three.
         fu = u - j
         fw = w - i
-        top = v[i, j] * (1.0 - fu) + v[i, j + 1] * fu
-        bottom = v[i + 1, j] * (1.0 - fu) + v[i + 1, j + 1] * fu
-        return top * (1.0 - fw) + bottom * fw
+        gu = 1.0 - fu
+        gw = 1.0 - fw
+        k = i * nx + j
+        best = flat[k] + res * np.sqrt(fu * fu + fw * fw)
+        best = np.minimum(best, flat[k + 1] + res * np.sqrt(gu * gu + fw * fw))
+        k += nx
+        best = np.minimum(best, flat[k] + res * np.sqrt(fu * fu + gw * gw))
+        return np.minimum(best, flat[k + 1] + res * np.sqrt(gu * gu + gw * gw))
+
+    def covers(self, x: float, y: float) -> bool:
+        """True if one of the 4 cell centres around world point ``(x, y)`` (m) is
+        reachable, i.e. the field's value there is a path length, not a fill."""
+        ny, nx = self.values.shape
+        u = min(max(x / self.resolution - 0.5, 0.0), nx - 1.000001)
+        w = min(max(y / self.resolution - 0.5, 0.0), ny - 1.000001)
+        j, i = int(u), int(w)
+        return bool(self.reachable[i : i + 2, j : j + 2].any())
 
 
 _LEVELS: tuple[tuple[float, float], ...] = ((1.0, 0.5), (0.5, 0.0), (0.25, 0.0))
@@ -326,18 +366,19 @@ def _dijkstra_field(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(ny * nx, ny * nx)
     )
     target = _nearest_free(grid, layout.target)
-    start = _nearest_free(grid, layout.start)
-    if target is None or start is None:
+    if target is None:
         return None
     dist = csgraph.dijkstra(graph, directed=True, indices=target[0] * nx + target[1]).reshape(ny, nx)
     reachable = np.isfinite(dist)
-    if not reachable[start] and not force:
+    # The start's own cell must be reachable: its nearest free cell may lie on the
+    # far side of a wall, and the fill below would then pull the robot into it.
+    if not reachable[grid.cell_of(*layout.start)] and not force:
         return None
     # Fill blocked/unreachable cells from their nearest reachable cell, sloping
     # upwards into obstacles so the bilinear field pushes the robot out of them.
     far, (fi, fj) = ndimage.distance_transform_edt(~reachable, return_indices=True)
     values = np.where(reachable, dist, dist[fi, fj] + slope * far * res)
-    return CostField(values, res)
+    return CostField(values, res, reachable)
 
 
 def _nearest_free(grid: OccupancyGrid, point: tuple[float, float]) -> tuple[int, int] | None:
@@ -382,8 +423,10 @@ class PlannerExpert:
         comfort: gap (m) below which a sequence pays ``clearance_weight`` per
             squared metre of shortfall.
         clearance_weight: weight of that penalty (cost-field metres per m^2).
-        resolution: cell side of the cost field (m); a finer grid is used
-            only when this one disconnects start and target.
+        levels: cost-field grids to try, (cell side, extra inflation) in
+            metres; the arena's own ``grid_resolution`` with no extra
+            inflation (where the generator guarantees a path) is always
+            tried last.
     """
 
     kind = "planner"
@@ -394,13 +437,13 @@ class PlannerExpert:
         moving_margin: float = 0.3,
         comfort: float = 0.8,
         clearance_weight: float = 4.0,
-        resolution: float = 0.5,
+        levels: tuple[tuple[float, float], ...] = _LEVELS[:2],
     ) -> None:
         self.margin = margin
         self.moving_margin = moving_margin
         self.comfort = comfort
         self.clearance_weight = clearance_weight
-        self.resolution = resolution
+        self.levels = tuple(levels)
         self._field: CostField | None = None
         self._arena = None
         self._model: ArcModel | None = None
@@ -411,6 +454,16 @@ class PlannerExpert:
         self._reach = 0.0
         self._carrot = 1.0
         self._moving = False
+        self._origin = (0.0, 0.0)
+        self._layout: Layout | None = None
+        self._inflate = 0.0
+        self._levels: tuple[tuple[float, float], ...] = ()
+        self._level = 0
+        self._best = math.inf
+        self._since = 0
+        self._patience = 1
+        self.replans = 0
+        """Re-plans on a finer grid in the current episode (progress stalled)."""
 
     def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
         """Plans the episode's cost field and resets the drive-state mirror."""
@@ -418,9 +471,20 @@ class PlannerExpert:
         spec = task.spec
         layout: Layout = task.layout
         control = spec.control
-        levels = (*self.levels, (spec.arena.grid_resolution, 0.0))
-        self._field = cost_field(layout, ROBOT_RADIUS + spec.arena.path_margin, levels)
-        self._model = arc_model(control.speed, control.decision_period, control.command_period, control.max_accel)
+        self._layout = layout
+        self._inflate = ROBOT_RADIUS + spec.arena.path_margin
+        self._levels = (*self.levels, (spec.arena.grid_resolution, 0.0))
+        self._field = cost_field(layout, self._inflate, self._levels)
+        self._level = self._field_level()
+        self._best = math.inf
+        self._since = 0
+        # Decisions without a new best cost-to-go before re-planning: the time to
+        # travel ~20 m, long enough for any detour around a moving obstacle.
+        self._patience = max(10, round(20.0 / (control.speed * control.decision_period)))
+        self.replans = 0
+        self._model = arc_model(
+            control.speed, control.decision_period, control.command_period, control.max_accel
+        )
         self._state = self._model.zero_state
         self._size = (float(layout.size[0]), float(layout.size[1]))
         self._obstacles = _obstacle_arrays(layout)
@@ -438,6 +502,8 @@ class PlannerExpert:
         if model is None or self._field is None:
             raise RuntimeError("PlannerExpert.act called before reset")
         x0, y0, yaw0 = (float(v) for v in timestep.observation["pose"])
+        self._origin = (x0, y0)
+        self._watch_progress(x0, y0)
         tab = model.table(self._state)
         c, s = math.cos(yaw0), math.sin(yaw0)
         lx, ly = tab.poses[..., 0], tab.poses[..., 1]
@@ -453,9 +519,16 @@ class PlannerExpert:
         e = tab.end
         ex, ey = px[:, e], py[:, e]
         heading = yaw0 + tab.poses[:, e, 2]
-        cost = self._field(ex, ey) + self._field(
-            ex + self._carrot * np.cos(heading), ey + self._carrot * np.sin(heading)
-        )
+        # Field at the end point and its slope along the final heading, by central
+        # differences over +-h (one call for all points). The slope times one
+        # decision's travel stands for the field one decision ahead: evaluating it
+        # there directly would look through thin walls.
+        h = 0.5 * self._field.resolution
+        hx, hy = h * np.cos(heading), h * np.sin(heading)
+        n_seq = ex.shape[0]
+        values = self._field(np.concatenate([ex, ex + hx, ex - hx]), np.concatenate([ey, ey + hy, ey - hy]))
+        slope = (values[n_seq : 2 * n_seq] - values[2 * n_seq :]) / (2.0 * h)
+        cost = 2.0 * values[:n_seq] + self._carrot * slope
         shortfall = np.maximum(self.comfort - gap[:, tab.checked].min(axis=1), 0.0)
         cost = cost + self.clearance_weight * shortfall * shortfall
         if safe.any():
@@ -466,6 +539,34 @@ class PlannerExpert:
         action = int(tab.first[best])
         self._state = tab.next_state[action]
         return action
+
+    def _field_level(self) -> int:
+        """Index in ``self._levels`` of the current field's grid."""
+        res = self._field.resolution
+        return next((k for k, (r, _) in enumerate(self._levels) if r == res), len(self._levels) - 1)
+
+    def _watch_progress(self, x: float, y: float) -> None:
+        """Re-plans on the next finer grid when the cost-to-go at the robot has not
+        improved for ``_patience`` decisions: the coarse grid may show a gap that
+        the robot cannot take, and the finer grids see it closed."""
+        if not self._field.covers(x, y) and self._level + 1 < len(self._levels):
+            # The robot is where this grid sees no path (a gap or pocket it closes).
+            self._replan()
+            return
+        value = float(self._field(np.array([x]), np.array([y]))[0])
+        if value < self._best - 0.25:
+            self._best, self._since = value, 0
+            return
+        self._since += 1
+        if self._since > self._patience and self._level + 1 < len(self._levels):
+            self._replan()
+
+    def _replan(self) -> None:
+        """Cost field on the next finer level (that connects the start)."""
+        self._field = cost_field(self._layout, self._inflate, self._levels[self._level + 1 :])
+        self._level = self._field_level()
+        self._best, self._since = math.inf, 0
+        self.replans += 1
 
     def _static_gap(self, px: np.ndarray, py: np.ndarray, x0: float, y0: float) -> np.ndarray:
         """Gap (m) between the robot's outline and the nearest wall or static obstacle, shape of px."""
@@ -496,6 +597,13 @@ class PlannerExpert:
             return np.full(px.shape, np.inf)
         vel = arena.moving_velocities
         rad = arena.moving_radii
+        # Only the obstacles that can come within reach over the horizon (usually 0-2).
+        x0, y0 = self._origin
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        near = np.hypot(pos[:, 0] - x0, pos[:, 1] - y0) - rad - speed * times[-1] < self._reach
+        if not near.any():
+            return np.full(px.shape, np.inf)
+        pos, vel, rad = pos[near], vel[near], rad[near]
         lo = rad[:, None]  # (M, 1)
         hi = np.asarray(self._size)[None, :] - lo  # (M, 2)
         p = pos[None, :, :] + times[:, None, None] * vel[None, :, :]  # (N, M, 2)

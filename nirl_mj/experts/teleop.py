@@ -100,7 +100,9 @@ class KeyboardTeleop:
 
 def display_available() -> bool:
     """Whether an interactive window can open (a display on Linux; always elsewhere)."""
-    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return not sys.platform.startswith("linux") or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    )
 
 
 def teleoperate(
@@ -130,7 +132,9 @@ def teleoperate(
     recorder = TrajectoryRecorder(task.spec.control.decision_period)
     physics = env.physics
     kept = 0
-    with mujoco.viewer.launch_passive(physics.model.ptr, physics.data.ptr, key_callback=keys.on_key) as viewer:
+    with mujoco.viewer.launch_passive(
+        physics.model.ptr, physics.data.ptr, key_callback=keys.on_key
+    ) as viewer:
         for i in range(episodes):
             seed = seed_of(i)
             env.random_state.seed(seed)
