@@ -27,12 +27,17 @@ __all__ = [
     "WHEEL_DISTANCE",
     "WHEEL_RADIUS",
     "Action",
+    "BODY_RADIUS",
     "DriveController",
     "action_profile",
     "body_twist",
     "rate_limit",
     "wheel_speeds",
 ]
+
+BODY_RADIUS: float = 0.225
+"""Radius of the Robotino's outline (m): Robotino 3 is 450 mm across. Ranges are
+measured from it and planners inflate obstacles by it."""
 
 WHEEL_RADIUS: float = 0.040
 """Omniwheel radius R (m), OpenRobotino API2 ``OmniDriveModel``."""

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.spec import ArenaSpec, ObstacleSpec
 
 # Position redraws per obstacle and attempt before the attempt is given up:
@@ -273,7 +274,7 @@ def time_to_wall(positions: np.ndarray, velocities: np.ndarray, low: np.ndarray,
 
 
 def generate_layout(
-    spec: ArenaSpec, random_state: np.random.RandomState, robot_radius: float = 0.225
+    spec: ArenaSpec, random_state: np.random.RandomState, robot_radius: float = BODY_RADIUS
 ) -> Layout:
     """Draws one solvable arena for ``spec``.
 

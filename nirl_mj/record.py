@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
+from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.features import ACTION_NAMES
 from nirl_mj.layout import Layout, generate_layout
 from nirl_mj.spec import from_dict
-from nirl_mj.task import BODY_RADIUS
 from nirl_mj.trajectory import Trajectory
 
 _OBSTACLE = (150, 150, 160)

@@ -24,14 +24,11 @@ from dm_env import specs
 
 from nirl_mj import features
 from nirl_mj.arena import NavigationArena
-from nirl_mj.drive import DriveController
+from nirl_mj.drive import BODY_RADIUS, DriveController
 from nirl_mj.layout import Layout, generate_layout
 from nirl_mj.robot import Robotino
 from nirl_mj.sensing import RangeSensors, Scan
 from nirl_mj.spec import TaskSpec, load_task
-
-BODY_RADIUS = 0.225
-"""Radius of the Robotino's outline, metres (Robotino 3: 450 mm diameter)."""
 
 _DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,

@@ -13,7 +13,8 @@ import pytest
 
 import nirl_mj
 from nirl_mj import spec as task_spec
-from nirl_mj.experts.planner import ROBOT_RADIUS, PlannerExpert, arc_model, cost_field
+from nirl_mj.drive import BODY_RADIUS
+from nirl_mj.experts.planner import PlannerExpert, arc_model, cost_field
 from nirl_mj.layout import Layout, Obstacle
 from nirl_mj.rollout import episode_seed
 from nirl_mj.task import Outcome
@@ -86,7 +87,7 @@ def test_steers_around_an_obstacle_on_the_straight_line():
     env = nirl_mj.make_env(spec, seed=0)
     outcome, actions, poses = run(env, PlannerExpert())
     assert outcome == "target"
-    gap = np.hypot(poses[:, 0] - 15.0, poses[:, 1] - 15.0) - radius - ROBOT_RADIUS
+    gap = np.hypot(poses[:, 0] - 15.0, poses[:, 1] - 15.0) - radius - BODY_RADIUS
     assert gap.min() > 0.1
     # It went around, i.e. turned off the straight line.
     assert np.abs(poses[:, 1] - 15.0).max() > radius

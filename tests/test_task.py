@@ -7,7 +7,8 @@ import pytest
 from dm_env import test_utils
 
 from nirl_mj import make_env, spec
-from nirl_mj.task import BODY_RADIUS, Outcome
+from nirl_mj.drive import BODY_RADIUS
+from nirl_mj.task import Outcome
 
 FORWARD, LEFT60, BACKWARD = 0, 2, 5
 

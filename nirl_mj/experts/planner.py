@@ -51,13 +51,11 @@ from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
 from nirl_mj import drive
+from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.layout import Layout, OccupancyGrid, occupancy_grid
 
 __all__ = ["PlannerExpert", "ArcModel", "arc_model", "CostField", "cost_field"]
 
-ROBOT_RADIUS = 0.225
-"""Radius of the Robotino's outline, metres (the same as ``nirl_mj.task.BODY_RADIUS``,
-repeated here so that importing the planner does not import MuJoCo)."""
 
 _BACKWARD = 5
 _FORWARD = 0
@@ -326,8 +324,8 @@ def cost_field(
     # Even the finest grid disconnects start and target (explicit obstacles placed
     # tighter than the generator's margin): plan with the bare robot radius.
     res = levels[-1][0]
-    grid = occupancy_grid(layout, res, ROBOT_RADIUS)
-    field = _dijkstra_field(grid, layout, ROBOT_RADIUS, clearance_scale, clearance_weight, slope, force=True)
+    grid = occupancy_grid(layout, res, BODY_RADIUS)
+    field = _dijkstra_field(grid, layout, BODY_RADIUS, clearance_scale, clearance_weight, slope, force=True)
     assert field is not None
     return field
 
@@ -347,7 +345,7 @@ def _dijkstra_field(
     free = ~occ
     # Gap to the nearest obstacle (m): distance to the nearest blocked cell centre,
     # plus the inflation, minus the robot radius.
-    gap = ndimage.distance_transform_edt(free) * res + (inflate - ROBOT_RADIUS) - 0.5 * res
+    gap = ndimage.distance_transform_edt(free) * res + (inflate - BODY_RADIUS) - 0.5 * res
     shortfall = np.clip(1.0 - gap / clearance_scale, 0.0, 1.0)
     weight = (1.0 + clearance_weight * shortfall * shortfall).ravel()
     flat_free = free.ravel()
@@ -472,7 +470,7 @@ class PlannerExpert:
         layout: Layout = task.layout
         control = spec.control
         self._layout = layout
-        self._inflate = ROBOT_RADIUS + spec.arena.path_margin
+        self._inflate = BODY_RADIUS + spec.arena.path_margin
         self._levels = (*self.levels, (spec.arena.grid_resolution, 0.0))
         self._field = cost_field(layout, self._inflate, self._levels)
         self._level = self._field_level()
@@ -584,7 +582,7 @@ class PlannerExpert:
                 outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
                 sdf = outside + np.minimum(np.maximum(qx, qy), 0.0) - ob[:, 6]
                 gap = np.minimum(gap, sdf.min(axis=-1))
-        return gap - ROBOT_RADIUS
+        return gap - BODY_RADIUS
 
     def _moving_gap(self, px: np.ndarray, py: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Gap (m) to the nearest moving obstacle at each sample's time, shape of px.
@@ -612,4 +610,4 @@ class PlannerExpert:
         p = np.where(p > hi, 2.0 * hi - p, p)
         dx = px[..., None] - p[None, :, :, 0]  # (S, N, M)
         dy = py[..., None] - p[None, :, :, 1]
-        return (np.hypot(dx, dy) - rad).min(axis=-1) - ROBOT_RADIUS
+        return (np.hypot(dx, dy) - rad).min(axis=-1) - BODY_RADIUS

@@ -1,39 +1,43 @@
 """The sensor-limited demonstrator: drives on what the robot senses and remembers.
 
-:class:`SensorExpert` reads nothing but ``timestep.observation``: the per-ray
-clearances ``rays``, the odometry ``pose`` and the ``target`` position. It
-never looks at the arena, the task or the physics, so everything it knows
-about obstacles it has seen with its own rays. It behaves like a careful
-driver watching the sensors, in two layers:
+:class:`SensorExpert` reads nothing but ``timestep.observation``: phi(s) as the
+task computes it from the sensors (``features``), the per-ray clearances
+``rays``, the odometry ``pose`` and the ``target`` position. It never looks at
+the arena, the task or the physics, so everything it knows about obstacles it
+has seen with its own rays. Its demonstrations are meant for learners that see
+only phi(s), so its ordinary decisions are a function of phi(s), and memory is
+used only to keep it safe and to get it out of pockets:
 
-- **Memory.** Every ray hit is written into a world-frame grid (0.25 m
-  cells); the free stretch of every ray clears the cells it passes, so
-  obstacles that moved away are forgotten. Unknown space counts as free.
-- **Local choice (every decision).** Like :func:`nirl_mj.policies.rule_policy`:
-  head for the target's 40-degree sector, turn away when obstacles are close.
-  The closeness is measured on the remembered hits along each action's arc
-  and along the best follow-up arc (a two-decision look-ahead, so it never
-  enters a spot it cannot drive on from); actions whose arcs come closer than
-  a hard margin are ruled out, the rest pay a penalty that grows as the
-  clearance shrinks. With nothing left it backs off, and keeps off the arc
-  that led in for a few decisions, so it backs far enough to turn instead of
-  driving straight back into the same spot.
-- **Escape (rare).** The local rule has no memory, so it can circle in a
-  pocket or dither in front of a wide obstacle. When the distance to the
-  target has not improved for ``stuck_steps`` decisions it plans on its
-  memory (Dijkstra on a 1 m grid, cells near remembered hits expensive) and
-  steers for a waypoint a few metres down that plan, until it is clearly
-  closer to the target than where it got stuck (the leaving rule of the Bug
-  algorithms, so every escape ends with progress). Every decision spent in a
-  cell makes planning through it dearer, so a plan that leads back into the
-  same trap loses to the alternatives.
+- **Rule on phi(s) (ordinary decisions).** The same rule as
+  :func:`nirl_mj.policies.rule_policy`: each forward arc is judged by the
+  danger levels phi shows along its chord and at its final heading (danger 5
+  or more, i.e. under 2.33 m of clearance by default, rules it out); the rest
+  are scored by their deviation from the centre of the target sector V plus a
+  penalty growing with danger. With every arc ruled out it backs off.
+- **Memory veto (rare).** Every ray hit is written into a world-frame grid
+  (0.25 m cells); the free stretch of every ray clears the cells it passes,
+  so obstacles that moved away are forgotten. Before an arc is driven, the
+  remembered hits along it and along the best follow-up arc (a two-decision
+  look-ahead) must stay a hard margin away from the robot's outline; this
+  catches what the coarse danger levels cannot show (an edge between two
+  rays, an obstacle that has slipped behind the rear sensors). A vetoed arc
+  gives way to the rule's next choice.
+- **Escape (rare).** The rule has no memory, so it can circle in a pocket or
+  dither in front of a wide obstacle. When the distance to the target has not
+  improved by 0.5 m for ``stuck_steps`` decisions, it plans on its memory
+  (Dijkstra on 1 m cells in a 41 m x 41 m window around the robot, cells near
+  remembered hits expensive, the straight-line distance to the target as the
+  cost beyond the window) and steers for a point a few metres down that path,
+  judging arcs by their geometric clearance to remembered hits, until it is
+  1 m closer to the target than where it got stuck (the leaving rule of the
+  Bug algorithms, so every escape ends with progress). Every decision spent
+  in a cell makes planning through it dearer, so a plan that leads back into
+  the same trap loses to the alternatives. The path is kept and followed
+  until new obstacles are seen on it, the robot strays from it or reaches its
+  end.
 
-Cost: a decision costs ~0.1 ms (a few dozen small numpy calls); an escape
-plan (~5-10 ms) happens in a few percent of the episodes only.
-
-Heading for the target *sector* (not the exact bearing) and turning on
-closeness keeps its actions a function of what phi(s) shows most of the
-time, which is what makes its demonstrations learnable.
+Cost (2 m/s, 100 m arenas): an ordinary decision is a few small numpy calls
+(~0.1 ms); a window plan costs ~1 ms and happens only while escaping.
 """
 
 from __future__ import annotations
@@ -61,7 +65,10 @@ _TURNS_DEG = np.array([0.0, 30.0, 60.0, -30.0, -60.0])
 
 _CELL = 0.25  # memory grid cell side, metres
 _COARSE = 4  # memory cells per planning cell side (1 m planning cells)
+_PLAN_CELL = _CELL * _COARSE  # planning cell side, metres
 _PAD = 30.0  # memory grid margin around start and target, metres
+_WINDOW = 20  # planning window half-side, planning cells (the window is 41 x 41 m)
+_WAYPOINT = 6  # planning cells down the path to the escape waypoint (6-8.5 m)
 # Distance from a cell centre to any point of its cell, metres: a remembered
 # hit may lie this much closer than its cell centre.
 _CELL_SLACK = _CELL * math.sqrt(0.5)
@@ -80,6 +87,32 @@ _COST_FREE = 1.0
 # into a trap gets more expensive every time, so repeated escapes go elsewhere.
 _COST_VISIT = 3.0
 _EIGHT = np.ones((3, 3), dtype=bool)
+
+# The rule on phi(s), as nirl_mj.policies.rule_policy, in table form so that
+# one decision costs a handful of numpy calls. Directions (degrees) of the
+# sensors in phi's danger block [S1, S2, S3, S4, S7, S8, S9].
+_PHI_SENSOR_DEG = np.degrees(features.SENSOR_ANGLES[list(features.FEATURE_SENSORS)])
+_RULE_RULED_OUT = 5.0  # danger level from which the rule rules an arc out
+
+
+def _angle_gap_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """|a - b| wrapped to [0, 180] degrees, broadcast over a[:, None] and b[None, :]."""
+    return np.abs((a[:, None] - b[None, :] + 180.0) % 360.0 - 180.0)
+
+
+# Danger seen along action a from phi sensor j is danger_j - _RULE_FADE[a, j]:
+# a sensor's level fades by two levels per 40 degrees away from its cone's
+# centre, taken at the arc's chord (half its turn) and at its final heading.
+_RULE_FADE = (
+    2.0
+    / 40.0
+    * np.minimum(
+        _angle_gap_deg(_TURNS_DEG / 2.0, _PHI_SENSOR_DEG), _angle_gap_deg(_TURNS_DEG, _PHI_SENSOR_DEG)
+    )
+)
+# Deviation of each action's heading change from the centre of target sector
+# V = 1..9 (row V - 1), in units of 60 degrees.
+_RULE_DEVIATION = _angle_gap_deg(np.arange(features.N_SENSORS) * 40.0, _TURNS_DEG) / 60.0
 
 
 @functools.lru_cache(maxsize=4)
@@ -108,27 +141,27 @@ def _unit_arcs(decision_period: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=2)
-def _look_ahead_table(decision_period: float) -> tuple[np.ndarray, np.ndarray]:
+def _look_ahead_table(decision_period: float) -> np.ndarray:
     """Sample points of every one- and two-decision forward sequence, robot frame, unit travel.
 
-    Returns ``first`` (5, F, 2) points along the first arc and ``second``
-    (5, 5, S, 2) points along the follow-up arc b after first arc a (metres
-    for one metre of travel per decision).
+    Returns (5, F + 5 S, 2): for first arc a, the F points along it, then the S
+    points along each follow-up arc b = 0..4 (metres for one metre of travel
+    per decision). One table lets one distance computation serve both arcs.
     """
     points, yaw = _unit_arcs(decision_period)
-    first = points[:, [i - 1 for i in _FIRST_SAMPLES]]
+    first = points[:, [i - 1 for i in _FIRST_SAMPLES]]  # (5, F, 2)
     follow = points[:, [i - 1 for i in _SECOND_SAMPLES]]  # (5, S, 2)
     end = points[:, -1]  # (5, 2)
     c, s = np.cos(yaw), np.sin(yaw)
     rot = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (5, 2, 2)
-    second = end[:, None, None, :] + np.einsum("aij,bsj->absi", rot, follow)
-    return first, second
+    second = end[:, None, None, :] + np.einsum("aij,bsj->absi", rot, follow)  # (5, 5, S, 2)
+    return np.concatenate([first, second.reshape(_N_FORWARD, -1, 2)], axis=1)
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=8)
 def _lattice(ny: int, nx: int) -> tuple[sparse.csr_matrix, np.ndarray]:
     """8-connected grid graph on (ny, nx) cells with edge lengths in cells, and the
-    source cell of every stored edge (for per-cell costs)."""
+    destination cell of every stored edge (for per-cell costs)."""
     idx = np.arange(ny * nx).reshape(ny, nx)
     rows, cols, lengths = [], [], []
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
@@ -142,8 +175,15 @@ def _lattice(ny: int, nx: int) -> tuple[sparse.csr_matrix, np.ndarray]:
         (np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))), shape=(ny * nx, ny * nx)
     )
     graph.sort_indices()
-    source = np.repeat(np.arange(ny * nx), np.diff(graph.indptr))
-    return graph, source
+    return graph, graph.indices.copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _inner(h: int, w: int) -> np.ndarray:
+    """(h, w): 0 on a grid's border cells, ``inf`` inside (added to rule the inside out)."""
+    inner = np.zeros((h, w))
+    inner[1:-1, 1:-1] = np.inf
+    return inner
 
 
 def _wrap_deg(angle: np.ndarray | float) -> np.ndarray | float:
@@ -151,8 +191,17 @@ def _wrap_deg(angle: np.ndarray | float) -> np.ndarray | float:
     return (angle + 180.0) % 360.0 - 180.0
 
 
+def rule_scores(phi: np.ndarray) -> np.ndarray:
+    """Scores (5,) of the forward actions under :func:`nirl_mj.policies.rule_policy`
+    (lower is better, ``inf`` ruled out); all ``inf`` means the rule backs off."""
+    danger = np.max(phi[None, 0:7] - _RULE_FADE, axis=1)
+    region = int(phi[7])
+    penalty = np.maximum(danger - 2.0, 0.0) ** 2 / 4.0
+    return np.where(danger >= _RULE_RULED_OUT, np.inf, _RULE_DEVIATION[region - 1] + penalty)
+
+
 class SensorExpert:
-    """Drives on its own sensor readings, its odometry and the target position only.
+    """Drives on phi(s), its own sensor readings, its odometry and the target position only.
 
     Args:
         speed: forward speed (m/s) if known; ``None`` estimates the travel per
@@ -161,7 +210,8 @@ class SensorExpert:
         decision_period: seconds per decision (only used with ``speed``).
         hard_margin: closest allowed gap (m) between the robot's outline and a
             remembered hit along the look-ahead arcs.
-        soft_clearance: gap (m) below which an action pays a danger penalty.
+        soft_clearance: gap (m) below which an arc pays a danger penalty while
+            escaping.
         stuck_steps: decisions without 0.5 m of progress before it plans an escape.
     """
 
@@ -180,7 +230,7 @@ class SensorExpert:
         self._hard = hard_margin
         self._soft = soft_clearance
         self._stuck_steps = stuck_steps
-        self._first, self._second = _look_ahead_table(decision_period)
+        self._look_ahead = _look_ahead_table(decision_period)
         self._occ = np.zeros((1, 1), dtype=bool)
 
     # -- episode -------------------------------------------------------------------------
@@ -195,7 +245,8 @@ class SensorExpert:
         target = np.asarray(obs["target"], dtype=np.float64)
         rays = np.asarray(obs["rays"], dtype=np.float64)
         self._target = target.copy()
-        self._angles = ray_angles(rays.size // features.N_SENSORS)
+        self._k = rays.size // features.N_SENSORS
+        self._angles = ray_angles(self._k)
         # The sensing range is not observed as such: readings are capped at it,
         # so the largest reading seen is the range (or a little less).
         self._range = float(rays.max())
@@ -203,7 +254,7 @@ class SensorExpert:
         lo = np.minimum(pose[:2], target) - _PAD
         hi = np.maximum(pose[:2], target) + _PAD
         # Whole planning cells, so the coarse grid is an exact block reduction.
-        n = np.ceil((hi - lo) / (_CELL * _COARSE)).astype(int) * _COARSE
+        n = np.ceil((hi - lo) / _PLAN_CELL).astype(int) * _COARSE
         self._origin = lo
         self._occ = np.zeros((n[1], n[0]), dtype=bool)  # [row = y, column = x]
         self._step_length = self._speed * self._period if self._speed else 1.0
@@ -214,11 +265,10 @@ class SensorExpert:
         self._last_progress = 0
         self._escape = False
         self._escape_best = math.inf
-        self._cost_to_go: np.ndarray | None = None
+        self._path: np.ndarray | None = None  # escape path, world metres (P, 2)
         self._planned_at = -1
         self._hits_since_plan = 0
-        ny, nx = self._occ.shape[0] // _COARSE, self._occ.shape[1] // _COARSE
-        self._visits = np.zeros((ny, nx))
+        self._visits = np.zeros((n[1] // _COARSE, n[0] // _COARSE))
         self._last_forward = 0
         self._tabu = -1
         self._tabu_until = -1
@@ -234,15 +284,11 @@ class SensorExpert:
         self._visits[self._coarse_cell(xy)] += 1.0
 
         to_target = self._target - xy
-        distance = float(math.hypot(to_target[0], to_target[1]))
-        self._track_progress(distance)
+        self._track_progress(math.hypot(to_target[0], to_target[1]))
         if self._escape:
-            goal_bearing = self._escape_bearing(xy, yaw)
-            quantise = False
+            action = self._choose(xy, yaw, rays, self._escape_bearing(xy, yaw))
         else:
-            goal_bearing = math.degrees(math.atan2(to_target[1], to_target[0]) - yaw)
-            quantise = True
-        action = self._choose(xy, yaw, rays, goal_bearing, quantise)
+            action = self._follow_rule(xy, yaw, rays, np.asarray(obs["features"], dtype=np.float64))
         if action == _BACKWARD:
             # The last forward arc led into a spot too tight to go on from:
             # keep off it for a few decisions, so the robot backs off far
@@ -258,7 +304,7 @@ class SensorExpert:
 
     def _observe_motion(self, xy: np.ndarray) -> None:
         """Updates the travel per decision (m) from odometry when the speed is not given."""
-        step = float(np.hypot(*(xy - self._last_xy)))
+        step = math.hypot(xy[0] - self._last_xy[0], xy[1] - self._last_xy[1])
         self._last_xy = xy.copy()
         if not self._fixed_step and step > self._step_length:
             self._step_length = step
@@ -307,6 +353,24 @@ class SensorExpert:
             [self._origin[0] + (j + j0 + 0.5) * _CELL, self._origin[1] + (i + i0 + 0.5) * _CELL], axis=1
         )
 
+    # -- ordinary decisions: the rule on phi(s) -------------------------------------------
+
+    def _follow_rule(self, xy: np.ndarray, yaw: float, rays: np.ndarray, phi: np.ndarray) -> int:
+        """The rule's choice on ``phi`` (16,), among the arcs the memory does not veto."""
+        score = rule_scores(phi)
+        # Only hits within two decisions' travel plus the margins can veto an arc.
+        gaps = self._gaps(xy, yaw, 2.0 * self._step_length + self._hard + 2.0 * _CELL_SLACK + ROBOT_RADIUS)
+        if gaps is not None:
+            score = np.where(gaps >= self._hard, score, np.inf)
+        best = int(np.argmin(score))
+        if math.isfinite(score[best]):
+            return best
+        if self._rear_clear(rays):
+            return _BACKWARD
+        # Boxed in at the back too: the geometric choice, which finds the
+        # roomiest way out (it may still back off).
+        return self._choose(xy, yaw, rays, None)
+
     # -- escape --------------------------------------------------------------------------
 
     def _track_progress(self, distance: float) -> None:
@@ -323,103 +387,119 @@ class SensorExpert:
         elif self._steps - self._last_progress >= self._stuck_steps:
             self._escape = True
             self._escape_best = self._best
-            self._cost_to_go = None
+            self._path = None
 
-    def _plan(self) -> None:
-        """Cost-to-go (m-equivalent) to the target over the remembered hits, on 1 m cells."""
-        ny, nx = self._occ.shape[0] // _COARSE, self._occ.shape[1] // _COARSE
-        hit = self._occ.reshape(ny, _COARSE, nx, _COARSE).any(axis=(1, 3))
+    def _plan(self, xy: np.ndarray) -> None:
+        """Cheapest path (1 m cells, world metres) from the robot to the cell of a window
+        around it that minimises path cost + straight-line distance to the target."""
+        ny, nx = self._visits.shape
+        ci, cj = self._coarse_cell(xy)
+        i0, i1 = max(0, ci - _WINDOW), min(ny, ci + _WINDOW + 1)
+        j0, j1 = max(0, cj - _WINDOW), min(nx, cj + _WINDOW + 1)
+        h, w = i1 - i0, j1 - j0
+        block = self._occ[i0 * _COARSE : i1 * _COARSE, j0 * _COARSE : j1 * _COARSE]
+        hit = block.reshape(h, _COARSE, w, _COARSE).any(axis=(1, 3))
         near = ndimage.binary_dilation(hit, structure=_EIGHT)
         cost = (
-            np.where(hit, _COST_HIT, np.where(near, _COST_NEAR, _COST_FREE)) + _COST_VISIT * self._visits
+            np.where(hit, _COST_HIT, np.where(near, _COST_NEAR, _COST_FREE))
+            + _COST_VISIT * self._visits[i0:i1, j0:j1]
         ).ravel()
-        graph, source = _lattice(ny, nx)
-        # Reverse search from the target: an edge u -> v of the reversed path
-        # costs what entering u costs on the way to the target.
-        weighted = sparse.csr_matrix(
-            (graph.data * cost[source], graph.indices, graph.indptr), shape=graph.shape
-        )
+        graph, dest = _lattice(h, w)
+        # An edge costs what entering its destination cell costs.
+        weighted = sparse.csr_matrix((graph.data * cost[dest], graph.indices, graph.indptr), shape=graph.shape)
+        start = (ci - i0) * w + (cj - j0)
+        dist, pred = csgraph.dijkstra(weighted, directed=True, indices=start, return_predecessors=True)
+        # Beyond the window the way to the target is unknown: count it as free
+        # space in a straight line (cells, like the path costs).
+        cx = self._origin[0] + (np.arange(j0, j1) + 0.5) * _PLAN_CELL
+        cy = self._origin[1] + (np.arange(i0, i1) + 0.5) * _PLAN_CELL
+        beyond = np.hypot(cx[None, :] - self._target[0], cy[:, None] - self._target[1]) / _PLAN_CELL
+        # A path ends at the target or leaves the window: with a consistent
+        # estimate beyond, any cell inside would score no better than staying.
+        total = dist.reshape(h, w) + _COST_FREE * beyond + _inner(h, w)
         ti, tj = self._coarse_cell(self._target)
-        self._cost_to_go = csgraph.dijkstra(weighted, directed=True, indices=ti * nx + tj).reshape(ny, nx)
+        if i0 <= ti < i1 and j0 <= tj < j1:
+            total[ti - i0, tj - j0] = dist[(ti - i0) * w + (tj - j0)]
+        node = int(np.argmin(total))
+        cells = [node]
+        while cells[-1] != start and pred[cells[-1]] >= 0:
+            cells.append(int(pred[cells[-1]]))
+        cells = np.array(cells[::-1])
+        self._path = np.stack([cx[cells % w], cy[cells // w]], axis=1)
         self._planned_at = self._steps
         self._hits_since_plan = 0
 
     def _coarse_cell(self, point: np.ndarray) -> tuple[int, int]:
         """Planning cell (row, column) of a world point (m), clipped to the grid."""
-        size = _CELL * _COARSE
-        ny, nx = self._occ.shape[0] // _COARSE, self._occ.shape[1] // _COARSE
-        i = min(max(int((point[1] - self._origin[1]) // size), 0), ny - 1)
-        j = min(max(int((point[0] - self._origin[0]) // size), 0), nx - 1)
+        ny, nx = self._visits.shape
+        i = min(max(int((point[1] - self._origin[1]) // _PLAN_CELL), 0), ny - 1)
+        j = min(max(int((point[0] - self._origin[0]) // _PLAN_CELL), 0), nx - 1)
         return i, j
 
     def _escape_bearing(self, xy: np.ndarray, yaw: float) -> float:
-        """Bearing (deg, from the front) of a waypoint ~6 m down the memory plan."""
-        # Replan when new obstacles were seen (at most every other decision)
-        # and every few decisions anyway, as the visit costs grow.
+        """Bearing (deg, from the front) of a waypoint ~6 m down the escape path."""
+        # Replan only when the path may be stale: new obstacles were seen (at
+        # most every other decision), the visit costs have grown for a few
+        # decisions, the robot has strayed from the path or come to its end.
         since = self._steps - self._planned_at
-        if self._cost_to_go is None or (self._hits_since_plan > 0 and since >= 2) or since >= 5:
-            self._plan()
-        field = self._cost_to_go
-        ny, nx = field.shape
-        i, j = self._coarse_cell(xy)
-        for _ in range(6):
-            best = (field[i, j], i, j)
-            for di in (-1, 0, 1):
-                for dj in (-1, 0, 1):
-                    a, b = i + di, j + dj
-                    if 0 <= a < ny and 0 <= b < nx and field[a, b] < best[0]:
-                        best = (field[a, b], a, b)
-            if best[1] == i and best[2] == j:
-                break
-            i, j = best[1], best[2]
-        size = _CELL * _COARSE
-        wx = self._origin[0] + (j + 0.5) * size
-        wy = self._origin[1] + (i + 0.5) * size
-        if abs(wx - xy[0]) + abs(wy - xy[1]) < 1e-9:
+        replan = self._path is None or (self._hits_since_plan > 0 and since >= 2) or since >= 5
+        if not replan:
+            off = np.hypot(*(self._path - xy).T)
+            nearest = int(np.argmin(off))
+            replan = off[nearest] > 2.0 * _PLAN_CELL or nearest >= len(self._path) - 2
+        if replan:
+            self._plan(xy)
+            off = np.hypot(*(self._path - xy).T)
+            nearest = int(np.argmin(off))
+        wx, wy = self._path[min(nearest + _WAYPOINT, len(self._path) - 1)]
+        if abs(wx - xy[0]) + abs(wy - xy[1]) < 0.5 * _PLAN_CELL:
             wx, wy = self._target
         return math.degrees(math.atan2(wy - xy[1], wx - xy[0]) - yaw)
 
-    # -- local choice --------------------------------------------------------------------
+    # -- geometric choice (escapes, and when the rule is boxed in) ------------------------
 
-    def _choose(self, xy: np.ndarray, yaw: float, rays: np.ndarray, bearing: float, quantise: bool) -> int:
+    def _rear_clear(self, rays: np.ndarray) -> bool:
+        """The rear sensors (S5, S6) leave room to back off for one decision."""
+        return float(rays[4 * self._k : 6 * self._k].min()) > 0.5 * self._step_length + self._hard
+
+    def _gaps(self, xy: np.ndarray, yaw: float, radius: float) -> np.ndarray | None:
+        """Gap (5,) m between the robot's outline and the remembered hits along each
+        forward arc and its best follow-up arc; ``None`` if no hit lies within
+        ``radius`` m (square) of the robot."""
+        hits = self._nearby_hits(xy, radius)
+        if hits.shape[0] == 0:
+            return None
+        c, s = math.cos(yaw), math.sin(yaw)
+        rot = np.array([[c, s], [-s, c]])  # robot frame -> world, for row vectors
+        points = xy + (self._look_ahead * self._step_length) @ rot  # (5, F + 5 S, 2)
+        flat = points.reshape(-1, 2)
+        d2 = ((flat[:, None, :] - hits[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+        gap = (np.sqrt(d2) - ROBOT_RADIUS - _CELL_SLACK).reshape(_N_FORWARD, -1)
+        n_first = len(_FIRST_SAMPLES)
+        gap_second = gap[:, n_first:].reshape(_N_FORWARD, _N_FORWARD, -1).min(axis=2).max(axis=1)
+        return np.minimum(gap[:, :n_first].min(axis=1), gap_second)
+
+    def _choose(self, xy: np.ndarray, yaw: float, rays: np.ndarray, bearing: float | None) -> int:
         """Scores the five forward arcs by heading and clearance; backward if none is safe.
 
         ``bearing`` (deg, counter-clockwise from the front) is where to head;
-        with ``quantise`` it is first snapped to the centre of its 40-degree
-        sector, as phi(s) shows it.
+        ``None`` scores clearance only.
         """
-        if quantise:
-            width = math.degrees(features.SECTOR_WIDTH)
-            bearing = width * round(_wrap_deg(bearing) / width)
-        deviation = np.abs(_wrap_deg(bearing - _TURNS_DEG)) / 60.0
-        d = self._step_length
-        hits = self._nearby_hits(xy, 2.0 * d + self._soft + 1.0)
-        if hits.shape[0] == 0:
+        if bearing is None:
+            deviation = np.zeros(_N_FORWARD)
+        else:
+            deviation = np.abs(_wrap_deg(bearing - _TURNS_DEG)) / 60.0
+        gap = self._gaps(xy, yaw, 2.0 * self._step_length + self._soft + 1.0)
+        if gap is None:
             return int(np.argmin(deviation))
-        c, s = math.cos(yaw), math.sin(yaw)
-        rot = np.array([[c, s], [-s, c]])  # robot frame -> world, for row vectors
-        first = xy + (self._first * d) @ rot  # (5, F, 2)
-        second = xy + (self._second * d) @ rot  # (5, 5, S, 2)
-        gap_first = self._clearance(first, hits).min(axis=1)  # (5,)
-        gap_second = self._clearance(second, hits).min(axis=2).max(axis=1)  # (5,)
-        gap = np.minimum(gap_first, gap_second)
         safe = gap >= self._hard
         if self._steps < self._tabu_until:
             safe[self._tabu] = False
         if not safe.any():
             # Boxed in: back off if the rear sensors (S5, S6) leave room.
-            k = rays.size // features.N_SENSORS
-            if rays[4 * k : 6 * k].min() > 0.5 * d + self._hard:
+            if self._rear_clear(rays):
                 return _BACKWARD
             return int(np.argmax(gap))
         penalty = 2.0 * np.maximum(1.0 - gap / self._soft, 0.0) ** 2
         score = np.where(safe, deviation + penalty, np.inf)
         return int(np.argmin(score))
-
-    @staticmethod
-    def _clearance(points: np.ndarray, hits: np.ndarray) -> np.ndarray:
-        """Gap (m) between the robot's outline at each of ``points`` (..., 2) and the
-        nearest remembered hit (N, 2); shape (...)."""
-        flat = points.reshape(-1, 2)
-        d2 = ((flat[:, None, :] - hits[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-        return (np.sqrt(d2) - ROBOT_RADIUS - _CELL_SLACK).reshape(points.shape[:-1])
