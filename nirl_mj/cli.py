@@ -49,10 +49,11 @@ def _episode_line(trajectory) -> str:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from nirl_mj.rollout import PolicyAgent, run_episodes
+    from nirl_mj.spec import apply_overrides, load_task
     from nirl_mj.task import make_env
     from nirl_mj.trajectory import summarise
 
-    env = make_env(args.task)
+    env = make_env(apply_overrides(load_task(args.task), args.set))
     spec = env.task.spec
     print(
         f"task {spec.name}: {spec.arena.static_obstacles} static + {spec.arena.moving_obstacles} moving "
@@ -88,14 +89,14 @@ def _check_output(path: Path, overwrite: bool) -> None:
 
 def _cmd_demos(args: argparse.Namespace) -> int:
     from nirl_mj.demos import ExpertConfig, collect, default_workers
-    from nirl_mj.spec import load_task
+    from nirl_mj.spec import apply_overrides, load_task
     from nirl_mj.trajectory import save_dataset, summarise
 
     out = Path(args.out)
     _check_output(out, args.overwrite)
     if args.rerun:
         _check_output(Path(args.rerun), args.overwrite)
-    spec = load_task(args.task)
+    spec = apply_overrides(load_task(args.task), args.set)
     expert = ExpertConfig(args.expert, args.base, args.slip, args.random_action, args.seed)
     workers = args.workers or default_workers()
     print(
@@ -216,6 +217,8 @@ def build_parser() -> argparse.ArgumentParser:
         "outcome and a summary. (NIRL training joins this job when the learner lands.)",
     )
     run.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
     run.add_argument("--episodes", type=_positive_int, default=10)
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--policy", choices=sorted(POLICIES), default="rule")
@@ -225,6 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     demos = sub.add_parser("demos", help="record expert demonstrations to a dataset file")
     demos.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    demos.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
     demos.add_argument("--episodes", type=_positive_int, default=30)
     demos.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
     demos.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default="sensor",

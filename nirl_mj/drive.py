@@ -257,8 +257,14 @@ class DriveController:
     (forward -> backward takes time). Call :meth:`reset` at episode start.
     """
 
+    _CACHE_SIZE = 4096
+
     def __init__(self) -> None:
         self._last = np.zeros(3)
+        # A plan depends only on its arguments and the last command, and episodes
+        # keep revisiting the same few states (cruising, turning from cruise):
+        # memoising skips the per-period Python loop of rate_limit.
+        self._plans: dict[tuple, np.ndarray] = {}
 
     @property
     def last(self) -> np.ndarray:
@@ -288,7 +294,14 @@ class DriveController:
         Returns:
             Shape (n_cmd, 3) wheel speeds (rad/s), one row per command period.
         """
-        targets = wheel_speeds(action_profile(action, speed, period, cmd_dt, max_accel))
-        commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
+        key = (action, speed, period, cmd_dt, max_accel, self._last.tobytes())
+        commands = self._plans.get(key)
+        if commands is None:
+            targets = wheel_speeds(action_profile(action, speed, period, cmd_dt, max_accel))
+            commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
+            commands.setflags(write=False)
+            if len(self._plans) >= self._CACHE_SIZE:
+                self._plans.clear()
+            self._plans[key] = commands
         self._last = commands[-1].copy()
         return commands

@@ -304,3 +304,20 @@ def replace(spec: TaskSpec, **sections: dict[str, Any]) -> TaskSpec:
             raise SpecError(f"unknown section {section!r}; accepted: arena, robot, sensing, control")
         data[section] = {**data[section], **values}
     return from_dict(data, f"{spec.name} (overridden)")
+
+
+def apply_overrides(spec: TaskSpec, assignments: list[str]) -> TaskSpec:
+    """Applies command-line overrides ``SECTION.KEY=VALUE`` (VALUE in TOML syntax, e.g.
+    ``control.speed=3`` or ``arena.start=[5, 5]``) and validates the result."""
+    sections: dict[str, dict[str, Any]] = {}
+    for text in assignments:
+        key, sep, value = text.partition("=")
+        section, dot, field_name = key.strip().partition(".")
+        if not sep or not dot or not field_name:
+            raise SpecError(f"override {text!r}: expected SECTION.KEY=VALUE, e.g. control.speed=3")
+        try:
+            parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value.strip()  # a bare word, e.g. robot.drive=planar
+        sections.setdefault(section, {})[field_name] = parsed
+    return replace(spec, **sections) if sections else spec

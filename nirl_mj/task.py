@@ -205,6 +205,8 @@ class NavigationTask(composer.Task):
         self._progress = (previous - self._distance) / (
             self._spec.control.speed * self._spec.control.decision_period
         )
+        if self._outcome == Outcome.RUNNING and self._diverged():
+            self._outcome = Outcome.PHYSICS_ERROR
         if self._outcome == Outcome.RUNNING:
             self._check_outcome()
         if self._outcome == Outcome.RUNNING and self._steps >= self._budget:
@@ -244,14 +246,23 @@ class NavigationTask(composer.Task):
         return math.hypot(tx - x, ty - y)
 
     def _check_outcome(self) -> bool:
-        """Sets the outcome from the current contacts, position and warnings; True if decided."""
-        if any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS):
-            self._outcome = Outcome.PHYSICS_ERROR
-        elif self._in_collision():
-            self._outcome = Outcome.COLLISION
+        """Sets the outcome from the current contacts and position; True if decided.
+
+        Divergence is looked for only once something is decided (and at the end
+        of every decision): MuJoCo resets a diverged state, and the reset robot
+        can seem to touch a wall, which must count as the divergence it is.
+        """
+        if self._in_collision():
+            outcome = Outcome.COLLISION
         elif self._target_distance() <= self._spec.arena.target_radius:
-            self._outcome = Outcome.TARGET
-        return self._outcome != Outcome.RUNNING
+            outcome = Outcome.TARGET
+        else:
+            return False
+        self._outcome = Outcome.PHYSICS_ERROR if self._diverged() else outcome
+        return True
+
+    def _diverged(self) -> bool:
+        return any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS)
 
     def _in_collision(self) -> bool:
         # Wheels touch the floor only through explicit pairs and nothing else

@@ -116,3 +116,51 @@ def test_avoids_a_single_obstacle_on_the_straight_line():
     # It went round, not through: the path left the start-target line by more than the obstacle's radius.
     offset = np.abs(poses[:, 0] - poses[:, 1]) / math.sqrt(2.0)
     assert offset.max() > radius
+
+
+def test_ordinary_decisions_are_the_rule_on_phi():
+    # The scores behind ordinary decisions pick exactly what rule_policy picks
+    # on phi(s), backing off when it rules every arc out.
+    from nirl_mj.experts.sensor import rule_scores
+    from nirl_mj.policies import rule_policy
+
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        phi = np.zeros(16)
+        phi[:7] = rng.integers(0, 8, 7)
+        phi[7] = rng.integers(1, 10)
+        scores = rule_scores(phi)
+        action = 5 if np.all(np.isinf(scores)) else int(np.argmin(scores))
+        assert action == rule_policy(phi)
+
+
+def test_follows_the_rule_on_phi_almost_always(navigate_env):
+    # Learners see only phi(s): away from the rare escapes and memory vetoes
+    # the expert must do what the rule on phi(s) does.
+    from nirl_mj.policies import rule_policy
+
+    expert = SensorExpert()
+    agree = total = 0
+    for episode in (0, 1):
+        navigate_env.random_state.seed(episode_seed(0, episode))
+        timestep = navigate_env.reset()
+        expert.reset(navigate_env, timestep)
+        while not timestep.last():
+            action = expert.act(timestep)
+            agree += action == rule_policy(timestep.observation["features"])
+            total += 1
+            timestep = navigate_env.step(action)
+    assert agree / total > 0.95
+
+
+def test_escapes_a_pocket_facing_the_target():
+    # A U-shaped pocket of boxes opening away from the target, right on the
+    # straight line: the rule alone would dither in front of its bottom.
+    pocket = (
+        {"shape": "box", "position": [50.0, 50.0], "size": [0.5, 6.0], "yaw": 45.0},
+        {"shape": "box", "position": [42.93, 51.41], "size": [4.0, 0.5], "yaw": 45.0},
+        {"shape": "box", "position": [51.41, 42.93], "size": [4.0, 0.5], "yaw": 45.0},
+    )
+    env = nirl_mj.make_env(_scene(*pocket), seed=0)
+    _, _, outcome = _drive(env, SensorExpert(), seed=0)
+    assert outcome == Outcome.TARGET

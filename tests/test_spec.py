@@ -103,3 +103,16 @@ def test_every_spec_field_is_documented_in_docs_tasks_md():
                 assert f"`[{f.name}]`" in text, f"section [{f.name}] is not documented in docs/TASKS.md"
                 continue
             assert f"| `{f.name}` |" in text, f"{cls.__name__}.{f.name} is not documented in docs/TASKS.md"
+
+
+def test_command_line_overrides():
+    s = spec.apply_overrides(
+        spec.load_task("navigate"), ["control.speed=3", "robot.drive=planar", "arena.start=[5, 5]"]
+    )
+    assert (s.control.speed, s.robot.drive, s.arena.start) == (3.0, "planar", (5.0, 5.0))
+    with pytest.raises(SpecError, match="expected SECTION.KEY=VALUE"):
+        spec.apply_overrides(s, ["speed=3"])
+    with pytest.raises(SpecError, match="unknown key"):
+        spec.apply_overrides(s, ["control.sped=3"])
+    with pytest.raises(SpecError, match="must be > 0.0"):
+        spec.apply_overrides(s, ["control.speed=0"])

@@ -13,7 +13,9 @@ used only to keep it safe and to get it out of pockets:
   danger levels phi shows along its chord and at its final heading (danger 5
   or more, i.e. under 2.33 m of clearance by default, rules it out); the rest
   are scored by their deviation from the centre of the target sector V plus a
-  penalty growing with danger. With every arc ruled out it backs off.
+  penalty growing with danger. With every arc ruled out it backs off (if
+  the rear sensors leave room; otherwise it takes the arc with the most
+  clearance to remembered hits).
 - **Memory veto (rare).** Every ray hit is written into a world-frame grid
   (0.25 m cells); the free stretch of every ray clears the cells it passes,
   so obstacles that moved away are forgotten. Before an arc is driven, the
@@ -32,9 +34,10 @@ used only to keep it safe and to get it out of pockets:
   1 m closer to the target than where it got stuck (the leaving rule of the
   Bug algorithms, so every escape ends with progress). Every decision spent
   in a cell makes planning through it dearer, so a plan that leads back into
-  the same trap loses to the alternatives. The path is kept and followed
-  until new obstacles are seen on it, the robot strays from it or reaches its
-  end.
+  the same trap loses to the alternatives. A path is followed without
+  replanning unless new obstacles were seen (at most every other decision),
+  the visit costs have grown for 5 decisions, or the robot strayed from it or
+  reached its end.
 
 Cost (2 m/s, 100 m arenas): an ordinary decision is a few small numpy calls
 (~0.1 ms); a window plan costs ~1 ms and happens only while escaping.
@@ -406,7 +409,9 @@ class SensorExpert:
         ).ravel()
         graph, dest = _lattice(h, w)
         # An edge costs what entering its destination cell costs.
-        weighted = sparse.csr_matrix((graph.data * cost[dest], graph.indices, graph.indptr), shape=graph.shape)
+        weighted = sparse.csr_matrix(
+            (graph.data * cost[dest], graph.indices, graph.indptr), shape=graph.shape
+        )
         start = (ci - i0) * w + (cj - j0)
         dist, pred = csgraph.dijkstra(weighted, directed=True, indices=start, return_predecessors=True)
         # Beyond the window the way to the target is unknown: count it as free

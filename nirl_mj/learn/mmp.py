@@ -1,0 +1,140 @@
+"""Model-free maximum margin planning (paper section IV-B, Algorithm 1 line 5).
+
+Feature expectations (eq. 3, eq. 11) from trajectories of state-action
+features f(s_t, a_t) (eq. 4-5; D = 96 in the paper's layout, but any D works),
+and the eq. 13 objective written per state-action pair, minimised by projected
+subgradient descent inside the unit ball ||theta||_2 <= 1. Rewards are
+r_theta(s, a) = theta^T f(s, a) (eq. 2), in the units of f.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "discounted_suffix_sums",
+    "feature_expectations",
+    "project_to_ball",
+    "mmp_objective",
+    "minimise_mmp",
+]
+
+
+def discounted_suffix_sums(f: np.ndarray, gamma: float) -> np.ndarray:
+    """Per-pair discounted feature sums along one trajectory (Monte-Carlo estimate of eq. 3).
+
+    f: (T, D) features f(s_t, a_t) of one trajectory in time order (any trailing
+    shape works; the sum runs over axis 0). Returns float64 of the same shape
+    with row t = sum_{k >= t} gamma^(k - t) f_k, i.e. mu_hat(s_t, a_t); row 0 is
+    the trajectory's whole discounted sum f^tau. T = 0 gives an empty array.
+    """
+    f = np.asarray(f, dtype=np.float64)
+    out = np.empty_like(f)
+    acc = np.zeros(f.shape[1:], dtype=np.float64)
+    # eq. 3 along the sampled trajectory: mu(s_t, a_t) = f_t + gamma mu(s_{t+1}, a_{t+1})
+    for t in range(f.shape[0] - 1, -1, -1):
+        acc = f[t] + gamma * acc
+        out[t] = acc
+    return out
+
+
+def feature_expectations(fs: Sequence[np.ndarray], gamma: float) -> np.ndarray:
+    """Feature expectations mu of a set of trajectories (eq. 11).
+
+    fs: N_T arrays of shape (L_i, D), the features f(s_t^i, a_t^i) of trajectory
+    i in time order (L_i = 0 allowed: it contributes zeros). Returns (D,)
+    float64: mu = (1/N_T) sum_i sum_{t=1}^{L_i} gamma^(t-1) f(s_t^i, a_t^i).
+    """
+    if len(fs) == 0:
+        raise ValueError("feature_expectations needs at least one trajectory")
+    total = None
+    for f in fs:
+        f = np.asarray(f, dtype=np.float64)
+        # eq. 11 inner sum: sum_{t=1}^{L_i} gamma^(t-1) f(s_t, a_t)   (weight 1 on the first pair)
+        weights = float(gamma) ** np.arange(f.shape[0], dtype=np.float64)
+        s = np.tensordot(weights, f, axes=(0, 0))
+        total = s if total is None else total + s
+    # eq. 11 outer: (1 / N_T) sum_i
+    return total / len(fs)
+
+
+def project_to_ball(theta: np.ndarray, radius: float = 1.0) -> np.ndarray:
+    """Euclidean projection onto {||theta||_2 <= radius} (the constraint of Algorithm 1, line 5).
+
+    Returns a new float64 array: theta itself if inside, else theta * radius / ||theta||_2.
+    """
+    theta = np.array(theta, dtype=np.float64)
+    norm = float(np.linalg.norm(theta))
+    if norm > radius:
+        theta *= radius / norm
+    return theta
+
+
+def mmp_objective(
+    theta: np.ndarray, expert: np.ndarray, learner: np.ndarray, loss: np.ndarray, lam: float
+) -> tuple[float, np.ndarray]:
+    """The MMP objective (eq. 13) per state-action pair, with a subgradient.
+
+    theta: (D,) reward weights; expert: (N, D) expert feature-expectation
+    estimates mu_hat_E(s_n, a_n) at the N expert pairs; learner: (N, A, D) the
+    learner's estimates mu_hat_pi(s_n, a) for every action a in the expert's
+    state s_n; loss: (N, A) margin loss l(s_n, a) >= 0 (paper: 0 for the
+    expert's action, 1 otherwise); lam: lambda_1 >= 0.
+
+    J(theta) = (1/N) sum_n [ max_a (theta . learner[n, a] + loss[n, a]) - theta . expert[n] ]
+               + lam / 2 ||theta||^2,
+    returned with the subgradient (1/N) sum_n (learner[n, a*_n] - expert[n]) + lam theta,
+    a*_n the maximiser (lowest index on ties). Q-values are theta^T mu (eq. 3).
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    expert = np.asarray(expert, dtype=np.float64)
+    learner = np.asarray(learner, dtype=np.float64)
+    loss = np.asarray(loss, dtype=np.float64)
+    n = expert.shape[0]
+    if n == 0:
+        raise ValueError("mmp_objective needs at least one expert pair")
+    # eq. 3: Q^pi(s, a) = theta^T mu^pi(s, a), plus the margin loss l(s, a)
+    scores = learner @ theta + loss  # (N, A)
+    a_star = np.argmax(scores, axis=1)  # lowest index on ties
+    rows = np.arange(n)
+    q_expert = expert @ theta  # Q_theta^{pi_E}(s_n, a_n)
+    # eq. 13: J = sum_n [max_pi (Q^pi(s_n, a_n) + l) - Q_theta^{pi_E}(s_n, a_n)] + lambda_1/2 ||theta||^2
+    # (averaged over the N pairs instead of summed, so lam and the step size do not scale with N)
+    value = float(np.mean(scores[rows, a_star] - q_expert) + 0.5 * lam * (theta @ theta))
+    # subgradient: dJ/dtheta = (1/N) sum_n (mu_pi(s_n, a*_n) - mu_E(s_n, a_n)) + lambda_1 theta
+    grad = (learner[rows, a_star] - expert).mean(axis=0) + lam * theta
+    return value, grad
+
+
+def minimise_mmp(
+    theta0: np.ndarray,
+    expert: np.ndarray,
+    learner: np.ndarray,
+    loss: np.ndarray,
+    lam: float,
+    steps: int,
+    step_size: float,
+    decay: float = 0.0,
+) -> tuple[np.ndarray, float]:
+    """Projected subgradient descent on eq. 13 s.t. ||theta||_2 <= 1 (Algorithm 1, line 5).
+
+    theta <- P(theta - sigma_k g_k), sigma_k = step_size / (1 + decay k), k = 0..steps-1,
+    with P :func:`project_to_ball` (radius 1) and g_k from :func:`mmp_objective`
+    (paper: sigma_1 in [0, 1]). theta0 is projected first (unchanged if feasible).
+    Returns the iterate with the lowest J seen, theta0's projection and the final
+    iterate included (earliest on ties), and that J: the margin t^(i).
+    """
+    theta = project_to_ball(theta0)
+    best_theta, best_value = theta.copy(), np.inf
+    for k in range(int(steps) + 1):
+        value, grad = mmp_objective(theta, expert, learner, loss, lam)
+        if value < best_value:
+            best_theta, best_value = theta.copy(), value
+        if k == steps:
+            break
+        sigma = step_size / (1.0 + decay * k)
+        # theta <- theta - sigma_1 dJ/dtheta (section IV-B), then back into the ball ||theta||_2 <= 1
+        theta = project_to_ball(theta - sigma * grad)
+    return best_theta, float(best_value)

@@ -1,0 +1,124 @@
+"""The recovered reward r_theta(s, a) = theta^T f(s, a) (paper eq. 2, 4-5), saved with names.
+
+Two feature maps for the reward (the policy network always sees phi(s)):
+
+- ``"paper"``: f(s, a) of eq. 4-5, phi(s) in the block of action a, 96 values;
+- ``"extended"``: per action block [D/7 (7), V one-hot (9), I, U (7), 1] = 25
+  values, 150 in all. Scaling D into [0, 1] makes ||theta|| <= 1 meaningful for
+  every component; one-hot V lets a linear reward prefer "turn towards the
+  target's sector"; the constant lets it prefer an action as such
+  (../shared/docs/algorithms-notes.md, "Reward features").
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
+
+REWARD_FEATURES = ("paper", "extended")
+
+_D, _V, _I, _U = slice(0, 7), 7, 8, slice(9, 16)
+
+
+def state_reward_features(phi: np.ndarray, kind: str) -> np.ndarray:
+    """phi (..., 16) -> per-action block (..., 16) for "paper" or (..., 25) for "extended"."""
+    phi = np.asarray(phi, dtype=np.float64)
+    if kind == "paper":
+        return phi
+    if kind != "extended":
+        raise ValueError(f"unknown reward features {kind!r}; accepted: {', '.join(REWARD_FEATURES)}")
+    region = np.eye(N_SENSORS)[phi[..., _V].astype(int) - 1]
+    ones = np.ones((*phi.shape[:-1], 1))
+    return np.concatenate([phi[..., _D] / 7.0, region, phi[..., _I, None], phi[..., _U], ones], axis=-1)
+
+
+def block_names(kind: str) -> tuple[str, ...]:
+    """Names of one action block's components."""
+    if kind == "paper":
+        return FEATURE_NAMES
+    d = [n for n in FEATURE_NAMES if n.startswith("D_")]
+    u = [n for n in FEATURE_NAMES if n.startswith("U_")]
+    return (*(f"{n}/7" for n in d), *(f"V={v}" for v in range(1, 10)), "I", *u, "const")
+
+
+def reward_feature_names(kind: str) -> tuple[str, ...]:
+    """Names of all components of f(s, a): ``"<action>:<feature>"``."""
+    return tuple(f"{a}:{n}" for a in ACTION_NAMES for n in block_names(kind))
+
+
+def all_action_features(phi: np.ndarray, kind: str) -> np.ndarray:
+    """f(s, a) for every action: phi (N, 16) -> (N, 6, 6 * block)."""
+    block = state_reward_features(phi, kind)
+    n, b = block.shape
+    out = np.zeros((n, N_ACTIONS, N_ACTIONS * b))
+    for a in range(N_ACTIONS):
+        out[:, a, a * b : (a + 1) * b] = block
+    return out
+
+
+def pair_features(phi: np.ndarray, actions: np.ndarray, kind: str) -> np.ndarray:
+    """f(s_t, a_t) for given pairs: phi (N, 16), actions (N,) -> (N, 6 * block)."""
+    return all_action_features(phi, kind)[np.arange(len(actions)), np.asarray(actions, dtype=int)]
+
+
+@dataclass(frozen=True)
+class RewardModel:
+    """theta (6 * block,) over the ``kind`` feature map; ``reward`` is r_theta(s, a)."""
+
+    theta: np.ndarray
+    kind: str = "extended"
+
+    def __post_init__(self) -> None:
+        expected = len(reward_feature_names(self.kind))
+        if np.shape(self.theta) != (expected,):
+            raise ValueError(
+                f"theta has shape {np.shape(self.theta)}; {self.kind!r} features need ({expected},)"
+            )
+
+    def reward(self, phi: np.ndarray, action: int | np.ndarray) -> np.ndarray:
+        """r_theta(s, a) for phi (..., 16) and actions (...) -> (...)."""
+        phi = np.atleast_2d(phi)
+        actions = np.broadcast_to(np.asarray(action), phi.shape[:-1]).ravel()
+        return pair_features(phi.reshape(-1, phi.shape[-1]), actions, self.kind) @ self.theta
+
+    def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
+        """r_theta(s, a) for every action: phi (N, 16) -> (N, 6)."""
+        return all_action_features(np.atleast_2d(phi), self.kind) @ self.theta
+
+    def named(self) -> dict[str, float]:
+        """theta by component name."""
+        return dict(zip(reward_feature_names(self.kind), map(float, self.theta), strict=True))
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Writes ``{"kind", "theta": {name: value}}`` as JSON, atomically."""
+        text = json.dumps({"kind": self.kind, "theta": self.named()}, indent=1)
+        _atomic_write_text(Path(path), text)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> RewardModel:
+        data = json.loads(Path(path).read_text())
+        kind = data["kind"]
+        names = reward_feature_names(kind)
+        if set(data["theta"]) != set(names):
+            raise ValueError(f"{path}: theta components do not match the {kind!r} reward features")
+        return cls(np.array([data["theta"][n] for n in names]), kind)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

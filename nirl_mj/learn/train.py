@@ -1,0 +1,194 @@
+"""Training runs on disk: a run directory, a checkpoint every iteration, exact resume.
+
+RUN_DIR holds ``run.json`` (task, variant, configuration, seed, demonstrations,
+the arena seeds used), ``metrics.jsonl`` (one line per iteration),
+``checkpoint.npz`` (the whole learner state, written atomically after every
+iteration), and at the end ``policy.npz`` (the selected and the last network)
+and ``reward.json`` (theta of the selected iteration, by component name). An
+interrupted run (Ctrl-C, a crash, a killed machine) continues from its last
+checkpoint with ``resume=True`` and ends with exactly the weights an
+uninterrupted run would have.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from nirl_mj import spec as specs
+from nirl_mj.evaluate import domain_seeds
+from nirl_mj.learn import network
+from nirl_mj.learn.nirl import Metrics, Nirl, NirlConfig, greedy_policy
+from nirl_mj.learn.reward import RewardModel
+from nirl_mj.trajectory import load_dataset
+
+RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
+POLICY_FILE, REWARD_FILE = "policy.npz", "reward.json"
+
+
+class RunError(ValueError):
+    """A run directory is missing, foreign, corrupted or would be overwritten."""
+
+
+def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def read_run(run_dir: str | os.PathLike) -> dict:
+    """The run's ``run.json``, with a clear error if RUN_DIR is not a run."""
+    path = Path(run_dir) / RUN_FILE
+    if not path.is_file():
+        raise RunError(
+            f"{run_dir} is not a nirl-mj run directory (no {RUN_FILE}); train one with `nirl-mj train`"
+        )
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise RunError(f"{path} is corrupted: {exc}") from None
+
+
+def load_checkpoint(run_dir: str | os.PathLike) -> dict[str, np.ndarray]:
+    path = Path(run_dir) / CHECKPOINT_FILE
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except FileNotFoundError:
+        raise RunError(f"{run_dir} has no checkpoint to resume from ({CHECKPOINT_FILE})") from None
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise RunError(f"{path} is corrupted ({exc}); start a new run in another directory") from None
+
+
+def load_policy(
+    run_dir: str | os.PathLike, which: str = "selected"
+) -> tuple[Callable[[np.ndarray], int], dict]:
+    """The trained greedy policy on phi(s) (``which``: "selected" or "last") and the run's record."""
+    run = read_run(run_dir)
+    path = Path(run_dir) / POLICY_FILE
+    if not path.is_file():
+        raise RunError(
+            f"{run_dir} has no {POLICY_FILE}: its training has not finished (resume it with --resume)"
+        )
+    net = network.QNetwork(seed=0)
+    with np.load(path, allow_pickle=False) as data:
+        network.set_weights(
+            net, {k.split("/", 1)[1]: data[k] for k in data.files if k.startswith(which + "/")}
+        )
+    return greedy_policy(net, run["config"]["input_scaling"]), run
+
+
+def train(
+    run_dir: str | os.PathLike,
+    task: specs.TaskSpec,
+    demos_path: str | os.PathLike,
+    config: NirlConfig,
+    seed: int = 0,
+    resume: bool = False,
+    on_metrics: Callable[[Metrics], None] | None = None,
+) -> dict:
+    """Trains (or resumes) NIRL in ``run_dir``; returns the run record."""
+    from nirl_mj.task import make_env
+
+    run_dir = Path(run_dir)
+    demos = load_dataset(demos_path)
+    record = {
+        "task": task.to_dict(),
+        "config": config.to_dict(),
+        "seed": seed,
+        "demos": str(demos_path),
+        "demo_seeds": [t.arena_seed for t in demos],
+        "validation_seeds": domain_seeds("validation", seed, config.validation_arenas),
+    }
+    if resume:
+        saved = read_run(run_dir)
+        for key in ("task", "config", "seed"):
+            if saved[key] != json.loads(json.dumps(record[key])):
+                raise RunError(
+                    f"{run_dir} was trained with another {key}; resume with the same options, "
+                    "or train in a new --out"
+                )
+    elif run_dir.exists() and any(run_dir.iterdir()):
+        raise RunError(
+            f"{run_dir} exists and is not empty; pass --resume to continue it, or choose another --out"
+        )
+    run_dir.mkdir(parents=True, exist_ok=True)
+
+    learner = Nirl(config, demos, seed)
+    if resume:
+        learner.load_state(load_checkpoint(run_dir))
+        _truncate_metrics(run_dir / METRICS_FILE, learner.iteration)
+    else:
+        _atomic_write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
+        (run_dir / METRICS_FILE).write_text("")
+    env = make_env(specs.replace(task, robot={"drive": config.train_drive}))
+    validation_seeds = record["validation_seeds"]
+
+    def validate(net) -> float | None:
+        if config.selection != "validation" or learner.iteration % config.validate_every:
+            return None
+        from nirl_mj.evaluate import evaluate
+
+        policy = greedy_policy(net, config.input_scaling)
+        return evaluate(env, policy, validation_seeds)[0]["success_rate"]
+
+    k = config.trajectories_per_episode
+    while learner.iteration < config.episodes and not learner.stopped:
+        seeds = domain_seeds("train", seed, k, start=learner.iteration * k)
+        metrics = learner.step(env, seeds, validate)
+        with open(run_dir / METRICS_FILE, "a") as f:
+            f.write(json.dumps(metrics.__dict__) + "\n")
+        _atomic_savez(run_dir / CHECKPOINT_FILE, learner.state())
+        if on_metrics:
+            on_metrics(metrics)
+    return finish(run_dir, learner, record)
+
+
+def finish(run_dir: Path, learner: Nirl, record: dict) -> dict:
+    """Writes the selected and last policy and the selected reward."""
+    chosen = learner.selected
+    arrays = {f"selected/{k}": v for k, v in learner.kept[chosen].items()}
+    arrays |= {f"last/{k}": v for k, v in learner.kept[-1].items()}
+    _atomic_savez(run_dir / POLICY_FILE, arrays)
+    RewardModel(learner.thetas[chosen], learner.config.reward_features).save(run_dir / REWARD_FILE)
+    n_train = learner.iteration * learner.config.trajectories_per_episode
+    record = {
+        **record,
+        "iterations": learner.iteration,
+        "selected_iteration": chosen,
+        "train_seeds": domain_seeds("train", record["seed"], n_train),
+    }
+    _atomic_write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
+    return record
+
+
+def _truncate_metrics(path: Path, iterations: int) -> None:
+    """Keeps the first ``iterations`` lines: a crash may have written one past the checkpoint."""
+    lines = path.read_text().splitlines(keepends=True) if path.exists() else []
+    _atomic_write_text(path, "".join(lines[:iterations]))

@@ -1,0 +1,314 @@
+"""Hand-computed checks of the NIRL learning equations (eq. 6-9, 11, 13-15)."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from nirl_mj.learn.mmp import (
+    discounted_suffix_sums,
+    feature_expectations,
+    minimise_mmp,
+    mmp_objective,
+    project_to_ball,
+)
+from nirl_mj.learn.network import (
+    QNetwork,
+    boltzmann_probabilities,
+    cross_entropy_cost,
+    get_weights,
+    gradient_step,
+    greedy_actions,
+    minibatch_epochs,
+    policy_entropy,
+    q_values,
+    sample_action,
+    set_weights,
+)
+from nirl_mj.learn.sarsa import sarsa_targets
+
+LN3 = math.log(3.0)
+
+
+def _j(net: QNetwork, phi, actions, targets, l2: float) -> float:
+    """eq. 15 as a plain float."""
+    return float(cross_entropy_cost(net, phi, actions, targets, l2).detach())
+
+
+def _tiny_net() -> QNetwork:
+    """2 inputs, 2 hidden, 2 outputs; for x = [2, -1]: z = [0, ln 3], h = [1/2, 3/4], Q = [3/4, 1/2]."""
+    net = QNetwork(n_in=2, n_hidden=2, n_out=2)
+    set_weights(
+        net,
+        {
+            # column 0: bias weights
+            "W1": np.array([[0.0, 0.5, 1.0], [LN3, 0.0, 0.0]]),
+            "W2": np.array([[0.0, 2 * LN3, 0.0], [-LN3, 0.0, 4 * LN3 / 3]]),
+        },
+    )
+    return net
+
+
+# --- eq. 6-7: forward pass ---------------------------------------------------------------------------------
+
+
+def test_forward_eq7_by_hand():
+    net = _tiny_net()
+    x = np.array([[2.0, -1.0]])
+    # z1 = 0 + 0.5*2 + 1*(-1) = 0 -> h1 = 1/2;  z2 = ln 3 -> h2 = 3/4
+    # y1 = 0 + 2 ln3 * 1/2 = ln 3 -> Q1 = 3/4;  y2 = -ln3 + (4 ln3 / 3) * 3/4 = 0 -> Q2 = 1/2
+    expected = np.array([[0.75, 0.5]])
+    q = net(x)
+    assert q.dtype == torch.float64
+    np.testing.assert_allclose(q.detach().numpy(), expected, rtol=1e-14)
+    np.testing.assert_allclose(q_values(net, x), expected, rtol=1e-14)
+    np.testing.assert_allclose(q_values(net, x[0]), expected, rtol=1e-14)  # 1-D input -> (1, n_out)
+
+
+def test_q_values_matches_forward():
+    net = QNetwork(seed=3)
+    phi = np.random.default_rng(0).uniform(0, 9, size=(50, 16))
+    q = q_values(net, phi)
+    assert q.shape == (50, 6) and q.dtype == np.float64
+    assert np.all((q > 0) & (q < 1))
+    np.testing.assert_allclose(q, net(phi).detach().numpy(), rtol=1e-13, atol=0)
+
+
+def test_init_deterministic_and_in_range():
+    a, b, c = QNetwork(seed=7), QNetwork(seed=7), QNetwork(seed=8)
+    assert a.W1.shape == (10, 17) and a.W2.shape == (6, 11)
+    assert a.W1.dtype == torch.float64 and a.W2.dtype == torch.float64
+    assert torch.equal(a.W1, b.W1) and torch.equal(a.W2, b.W2)
+    assert not torch.equal(a.W1, c.W1)
+    for w in (a.W1, a.W2):
+        assert float(w.detach().min()) >= -0.5 and float(w.detach().max()) <= 0.5
+
+
+def test_weights_round_trip():
+    a, b = QNetwork(seed=1), QNetwork(seed=2)
+    w = get_weights(a)
+    assert set(w) == {"W1", "W2"} and w["W1"].shape == (10, 17) and w["W2"].shape == (6, 11)
+    set_weights(b, w)
+    assert torch.equal(a.W1, b.W1) and torch.equal(a.W2, b.W2)
+    np.testing.assert_array_equal(get_weights(b)["W1"], w["W1"])
+    w["W1"][0, 0] = 123.0  # a copy: editing it does not touch the network
+    assert float(a.W1.detach()[0, 0]) != 123.0
+    with pytest.raises(ValueError):
+        set_weights(b, {"W1": np.zeros((3, 3)), "W2": w["W2"]})
+
+
+# --- eq. 8-9: Boltzmann and greedy --------------------------------------------------------------------------
+
+
+def test_boltzmann_eq8_known_row():
+    eta = 10 * math.log(2.0)
+    q = np.array([0.1, 0.2, 0.3])  # exp(eta q) proportional to [1, 2, 4]
+    np.testing.assert_allclose(boltzmann_probabilities(q, eta), [1 / 7, 2 / 7, 4 / 7], rtol=1e-12)
+    p = boltzmann_probabilities(np.stack([q, np.zeros(3)]), eta)
+    np.testing.assert_allclose(p[1], [1 / 3] * 3, rtol=1e-12)
+    np.testing.assert_allclose(p.sum(axis=1), 1.0, rtol=1e-15)
+
+
+def test_boltzmann_eq8_stable_for_large_eta():
+    # eta q = [5000, 5001, 2000]: exp overflows unless the maximum is subtracted
+    p = boltzmann_probabilities(np.array([0.5, 0.5001, 0.2]), 1e4)
+    e = math.e
+    np.testing.assert_allclose(p, [1 / (1 + e), e / (1 + e), 0.0], rtol=1e-9, atol=1e-300)
+    assert np.all(np.isfinite(p))
+
+
+def test_sample_action_frequencies_and_determinism():
+    eta = 10 * math.log(2.0)
+    q = np.array([0.1, 0.2, 0.3])
+    rng = np.random.default_rng(0)
+    draws = np.array([sample_action(q, eta, rng) for _ in range(20000)])
+    freq = np.bincount(draws, minlength=3) / draws.size
+    np.testing.assert_allclose(freq, [1 / 7, 2 / 7, 4 / 7], atol=0.015)
+    r1, r2 = np.random.default_rng(5), np.random.default_rng(5)
+    assert [sample_action(q, eta, r1) for _ in range(50)] == [sample_action(q, eta, r2) for _ in range(50)]
+    assert sample_action(np.array([0.2, 0.9, 0.1]), 1e4, rng) == 1
+
+
+def test_greedy_eq9_ties_lowest_index():
+    q = np.array([[0.1, 0.7, 0.7, 0.2], [0.5, 0.5, 0.5, 0.5], [0.0, 0.0, 0.0, 0.3]])
+    np.testing.assert_array_equal(greedy_actions(q), [1, 0, 3])
+
+
+def test_policy_entropy():
+    assert policy_entropy(np.zeros((4, 6)), 50.0) == pytest.approx(math.log(6))
+    eta = 10 * math.log(2.0)
+    p = np.array([1, 2, 4]) / 7
+    h = -np.sum(p * np.log(p))
+    assert policy_entropy(np.array([[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]]), eta) == pytest.approx(
+        (h + math.log(3)) / 2
+    )
+    assert policy_entropy(np.array([0.0, 1.0, 0.0]), 1e4) == pytest.approx(0.0, abs=1e-12)
+
+
+# --- eq. 15: cost, gradient, descent ------------------------------------------------------------------------
+
+
+def test_cost_eq15_by_hand():
+    net = _tiny_net()
+    phi = np.array([[2.0, -1.0], [2.0, -1.0]])
+    actions = np.array([0, 1])  # Q_t = 3/4, 1/2
+    targets = np.array([0.75, 0.2])
+    l2 = 0.3
+    ce = -(0.75 * math.log(0.75) + 0.25 * math.log(0.25)) - (0.2 * math.log(0.5) + 0.8 * math.log(0.5))
+    # non-bias weights: W1[:, 1:] -> 0.25 + 1 ; W2[:, 1:] -> (2 ln3)^2 + (4 ln3 / 3)^2
+    sq = 1.25 + 4 * LN3**2 + 16 / 9 * LN3**2
+    expected = ce / 2 + l2 / (2 * 2) * sq
+    assert _j(net, phi, actions, targets, l2) == pytest.approx(expected, rel=1e-13)
+
+
+def test_cost_gradient_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    net = QNetwork(seed=4)
+    phi = rng.uniform(0, 3, size=(7, 16))
+    actions = rng.integers(0, 6, size=7)
+    targets = rng.uniform(0, 1, size=7)
+    l2 = 0.3
+    cost = cross_entropy_cost(net, phi, actions, targets, l2)
+    g1, g2 = torch.autograd.grad(cost, (net.W1, net.W2))
+    h = 1e-6
+    for param, grad in ((net.W1, g1), (net.W2, g2)):
+        numeric = np.zeros(tuple(param.shape))
+        for idx in np.ndindex(*param.shape):
+            old = float(param.detach()[idx])
+            with torch.no_grad():
+                param[idx] = old + h
+                up = _j(net, phi, actions, targets, l2)
+                param[idx] = old - h
+                down = _j(net, phi, actions, targets, l2)
+                param[idx] = old
+            numeric[idx] = (up - down) / (2 * h)
+        np.testing.assert_allclose(grad.numpy(), numeric, rtol=1e-6, atol=1e-9)
+
+
+def test_gradient_step_lowers_cost():
+    rng = np.random.default_rng(2)
+    net = QNetwork(seed=0)
+    phi = rng.uniform(0, 9, size=(20, 16))
+    actions = rng.integers(0, 6, size=20)
+    targets = rng.uniform(0, 1, size=20)
+    before = _j(net, phi, actions, targets, 0.1)
+    returned = gradient_step(net, phi, actions, targets, 0.1, 0.4)
+    assert returned == pytest.approx(before, rel=1e-14)
+    after = _j(net, phi, actions, targets, 0.1)
+    assert after < before
+
+
+def test_minibatch_epochs_deterministic_and_descending():
+    rng = np.random.default_rng(3)
+    phi = rng.uniform(0, 9, size=(40, 16))
+    actions = rng.integers(0, 6, size=40)
+    targets = rng.uniform(0, 1, size=40)
+    a, b = QNetwork(seed=0), QNetwork(seed=0)
+    before = _j(a, phi, actions, targets, 0.1)
+    ca = minibatch_epochs(a, phi, actions, targets, 0.1, 0.4, 5, 8, np.random.default_rng(9))
+    cb = minibatch_epochs(b, phi, actions, targets, 0.1, 0.4, 5, 8, np.random.default_rng(9))
+    assert ca == cb
+    assert torch.equal(a.W1, b.W1) and torch.equal(a.W2, b.W2)
+    assert _j(a, phi, actions, targets, 0.1) < before
+
+
+# --- eq. 3, 11: feature sums --------------------------------------------------------------------------------
+
+TRAJ_1 = np.array([[1.0, 0.0], [0.0, 2.0], [4.0, 4.0]])
+TRAJ_2 = np.array([[0.0, 2.0]])
+
+
+def test_discounted_suffix_sums():
+    # gamma = 1/2: row 2 = [4, 4]; row 1 = [0, 2] + [2, 2] = [2, 4]; row 0 = [1, 0] + [1, 2] = [2, 2]
+    np.testing.assert_allclose(discounted_suffix_sums(TRAJ_1, 0.5), [[2, 2], [2, 4], [4, 4]], rtol=1e-15)
+    assert discounted_suffix_sums(np.zeros((0, 2)), 0.5).shape == (0, 2)
+
+
+def test_feature_expectations_eq11_two_trajectories():
+    # traj 1: [1, 0] + 1/2 [0, 2] + 1/4 [4, 4] = [2, 2];  traj 2: [0, 2];  mean = [1, 2]
+    np.testing.assert_allclose(feature_expectations([TRAJ_1, TRAJ_2], 0.5), [1.0, 2.0], rtol=1e-15)
+    np.testing.assert_allclose(
+        feature_expectations([TRAJ_1, TRAJ_2], 0.5),
+        (discounted_suffix_sums(TRAJ_1, 0.5)[0] + discounted_suffix_sums(TRAJ_2, 0.5)[0]) / 2,
+    )
+
+
+# --- eq. 13: MMP ------------------------------------------------------------------------------------------
+
+
+def test_project_to_ball():
+    np.testing.assert_allclose(project_to_ball(np.array([3.0, 4.0])), [0.6, 0.8], rtol=1e-15)
+    np.testing.assert_array_equal(project_to_ball(np.array([0.3, 0.4])), [0.3, 0.4])
+    np.testing.assert_allclose(project_to_ball(np.array([3.0, 4.0]), radius=2.0), [1.2, 1.6], rtol=1e-15)
+
+
+def test_mmp_objective_value_and_subgradient():
+    theta = np.array([1.0, -1.0])
+    expert = np.array([[1.0, 0.0], [0.0, 1.0]])
+    learner = np.array([[[1.0, 0.0], [0.0, -1.0]], [[2.0, 1.0], [1.0, 1.0]]])
+    loss = np.array([[0.0, 1.0], [1.0, 0.0]])
+    # n=0: scores [1, 1+1] -> a*=1, term 2 - 1 = 1, g = [0,-1] - [1,0] = [-1,-1]
+    # n=1: scores [1+1, 0] -> a*=0, term 2 - (-1) = 3, g = [2,1] - [0,1] = [2,0]
+    # J = (1 + 3)/2 + 0.5/2 * 2 = 2.5;  g = [1/2, -1/2] + 0.5 [1, -1] = [1, -1]
+    value, grad = mmp_objective(theta, expert, learner, loss, 0.5)
+    assert value == pytest.approx(2.5, rel=1e-15)
+    np.testing.assert_allclose(grad, [1.0, -1.0], rtol=1e-15)
+
+
+def test_mmp_objective_ties_take_lowest_index():
+    theta = np.array([1.0, 0.0])
+    learner = np.array([[[1.0, 5.0], [1.0, -5.0]]])  # equal scores 1
+    value, grad = mmp_objective(theta, np.zeros((1, 2)), learner, np.zeros((1, 2)), 0.0)
+    assert value == pytest.approx(1.0)
+    np.testing.assert_allclose(grad, [1.0, 5.0])
+
+
+def test_minimise_mmp_one_projected_step():
+    theta0 = np.array([0.6, 0.8])
+    expert = np.array([[1.0, 0.0]])
+    learner = np.zeros((1, 2, 2))
+    loss = np.zeros((1, 2))
+    # J(theta) = 0 - theta_1, g = [-1, 0]; J(theta0) = -0.6
+    value0, grad0 = mmp_objective(theta0, expert, learner, loss, 0.0)
+    assert value0 == pytest.approx(-0.6) and np.allclose(grad0, [-1.0, 0.0])
+    # theta0 - 1.0 g = [1.6, 0.8], norm sqrt(3.2) > 1 -> projected back to [2, 1]/sqrt(5)
+    theta, value = minimise_mmp(theta0, expert, learner, loss, 0.0, steps=1, step_size=1.0)
+    np.testing.assert_allclose(theta, np.array([2.0, 1.0]) / math.sqrt(5), rtol=1e-14)
+    assert np.linalg.norm(theta) == pytest.approx(1.0)
+    assert value == pytest.approx(-2 / math.sqrt(5), rel=1e-14)
+    # many decaying steps approach the constrained optimum theta = [1, 0], J = -1
+    theta, value = minimise_mmp(theta0, expert, learner, loss, 0.0, steps=200, step_size=0.5, decay=0.1)
+    assert value == pytest.approx(-1.0, abs=1e-3) and np.linalg.norm(theta) <= 1.0 + 1e-12
+
+
+def test_minimise_mmp_keeps_best_iterate():
+    # A too-large step overshoots; theta0 is already optimal and must be returned.
+    theta0 = np.array([1.0, 0.0])
+    expert = np.array([[1.0, 0.0]])
+    learner = np.zeros((1, 2, 2))
+    theta, value = minimise_mmp(theta0, expert, learner, np.zeros((1, 2)), 1.0, steps=5, step_size=1.0)
+    # J = -theta_1 + |theta|^2 / 2, minimum over the ball at [1, 0]: J = -1/2
+    np.testing.assert_allclose(theta, [1.0, 0.0])
+    assert value == pytest.approx(-0.5)
+
+
+# --- eq. 14: SARSA ----------------------------------------------------------------------------------------
+
+
+def test_sarsa_targets_eq14():
+    alpha, gamma = 0.8, 0.65
+    q_sa = np.array([0.5, 0.5, 0.5, 0.9, 0.1])
+    rewards = np.array([0.1, 0.2, 0.2, 1.0, -1.0])
+    q_next = np.array([0.6, np.nan, np.nan, 0.9, 0.3])
+    terminal = np.array([False, True, True, False, True])
+    tv = np.array([0.0, 0.3, 0.0, 0.0, 0.0])
+    targets, share = sarsa_targets(q_sa, rewards, q_next, terminal, alpha, gamma, tv)
+    # bootstrap: 0.5 + 0.8 (0.1 + 0.65*0.6 - 0.5) = 0.5 + 0.8 * (-0.01) = 0.492
+    # terminal, value 0.3: 0.5 + 0.8 (0.2 + 0.3 - 0.5) = 0.5;  terminal, value 0: 0.5 + 0.8 (0.2 - 0.5) = 0.26
+    # clipped: 0.9 + 0.8 (1 + 0.585 - 0.9) = 1.448 -> 1;  0.1 + 0.8 (-1 - 0.1) = -0.78 -> 0
+    np.testing.assert_allclose(targets, [0.492, 0.5, 0.26, 1.0, 0.0], rtol=1e-14)
+    assert share == pytest.approx(2 / 5)
+    default, share0 = sarsa_targets(q_sa[:3], rewards[:3], q_next[:3], terminal[:3], alpha, gamma)
+    np.testing.assert_allclose(default, [0.492, 0.26, 0.26], rtol=1e-14)
+    assert share0 == 0.0
