@@ -18,7 +18,7 @@ from nirl_mj.rollout import episode_seed
 from nirl_mj.task import Outcome
 
 SENSING_RANGE = 5.0  # metres from the outline, the default of tasks/navigate.toml
-BODY_RADIUS = 0.225
+from nirl_mj.drive import BODY_RADIUS
 
 
 def _planar(spec: task_spec.TaskSpec) -> task_spec.TaskSpec:

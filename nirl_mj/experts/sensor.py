@@ -58,9 +58,6 @@ from nirl_mj.sensing import ray_angles
 
 __all__ = ["SensorExpert"]
 
-ROBOT_RADIUS = 0.225
-"""Radius of the Robotino's outline, metres (as ``nirl_mj.task.BODY_RADIUS``; repeated so
-that this module does not import MuJoCo)."""
 
 _BACKWARD = 5
 _N_FORWARD = 5  # actions 0..4 drive forward along an arc
@@ -253,7 +250,7 @@ class SensorExpert:
         # The sensing range is not observed as such: readings are capped at it,
         # so the largest reading seen is the range (or a little less).
         self._range = float(rays.max())
-        self._ray_samples = np.arange(ROBOT_RADIUS, self._range + ROBOT_RADIUS, _CELL)
+        self._ray_samples = np.arange(drive.BODY_RADIUS, self._range + drive.BODY_RADIUS, _CELL)
         lo = np.minimum(pose[:2], target) - _PAD
         hi = np.maximum(pose[:2], target) + _PAD
         # Whole planning cells, so the coarse grid is an exact block reduction.
@@ -327,7 +324,7 @@ class SensorExpert:
         """
         angle = self._angles + yaw
         cos, sin = np.cos(angle), np.sin(angle)
-        reach = rays + ROBOT_RADIUS  # from the robot's centre
+        reach = rays + drive.BODY_RADIUS  # from the robot's centre
         flat = self._occ.reshape(-1)  # a view: writes go to the grid
         # Free space: samples every cell side along each ray, stopping a cell
         # and a half short of the hit so that a surface is not cleared by its
@@ -362,7 +359,9 @@ class SensorExpert:
         """The rule's choice on ``phi`` (16,), among the arcs the memory does not veto."""
         score = rule_scores(phi)
         # Only hits within two decisions' travel plus the margins can veto an arc.
-        gaps = self._gaps(xy, yaw, 2.0 * self._step_length + self._hard + 2.0 * _CELL_SLACK + ROBOT_RADIUS)
+        gaps = self._gaps(
+            xy, yaw, 2.0 * self._step_length + self._hard + 2.0 * _CELL_SLACK + drive.BODY_RADIUS
+        )
         if gaps is not None:
             score = np.where(gaps >= self._hard, score, np.inf)
         best = int(np.argmin(score))
@@ -479,7 +478,7 @@ class SensorExpert:
         points = xy + (self._look_ahead * self._step_length) @ rot  # (5, F + 5 S, 2)
         flat = points.reshape(-1, 2)
         d2 = ((flat[:, None, :] - hits[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-        gap = (np.sqrt(d2) - ROBOT_RADIUS - _CELL_SLACK).reshape(_N_FORWARD, -1)
+        gap = (np.sqrt(d2) - drive.BODY_RADIUS - _CELL_SLACK).reshape(_N_FORWARD, -1)
         n_first = len(_FIRST_SAMPLES)
         gap_second = gap[:, n_first:].reshape(_N_FORWARD, _N_FORWARD, -1).min(axis=2).max(axis=1)
         return np.minimum(gap[:, :n_first].min(axis=1), gap_second)

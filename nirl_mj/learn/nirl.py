@@ -52,7 +52,7 @@ class NirlConfig:
     trajectories_per_episode: int = 10
     gamma: float = 0.65  # eq. 14
     alpha: float = 0.8  # eq. 14
-    eta: float = 60.0  # eq. 8, Boltzmann parameter while training
+    eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
     eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
     reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
     matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums

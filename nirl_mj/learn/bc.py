@@ -1,0 +1,34 @@
+"""Behaviour cloning with the same network: the reference that imitates without a reward.
+
+The network of eq. 6-7 is fitted to the demonstrations with the cross-entropy
+cost of eq. 15, every output at once: 1 for the demonstrated action, 0 for
+the others. Plain SGD as in NIRL's network step, so the two differ only in
+where the targets come from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from nirl_mj.features import N_ACTIONS
+from nirl_mj.learn import network
+from nirl_mj.learn.nirl import greedy_policy, network_inputs
+from nirl_mj.trajectory import Trajectory, stack_pairs
+
+
+def behaviour_cloning(
+    demos: list[Trajectory],
+    seed: int = 0,
+    epochs: int = 30,
+    step: float = 0.4,
+    l2: float = 1e-3,
+    scaled: bool = True,
+):
+    """Returns the greedy policy on phi(s) of a network trained to predict the demonstrated actions."""
+    phi, actions = stack_pairs(demos)
+    x = np.repeat(network_inputs(phi, scaled), N_ACTIONS, axis=0)
+    outputs = np.tile(np.arange(N_ACTIONS), len(actions))
+    targets = (outputs == np.repeat(actions, N_ACTIONS)).astype(np.float64)
+    net = network.QNetwork(seed=seed)
+    network.minibatch_epochs(net, x, outputs, targets, l2, step, epochs, 64, np.random.default_rng(seed))
+    return greedy_policy(net, scaled)

@@ -1,0 +1,104 @@
+"""NIRL training runs: reproducible, resumable, and careful with what is on disk."""
+
+import numpy as np
+import pytest
+
+from nirl_mj import spec
+from nirl_mj.demos import ExpertConfig, collect
+from nirl_mj.features import N_ACTIONS
+from nirl_mj.learn.nirl import NirlConfig
+from nirl_mj.learn.reward import RewardModel, reward_feature_names
+from nirl_mj.learn.train import CHECKPOINT_FILE, RunError, load_checkpoint, load_policy, train
+from nirl_mj.trajectory import DatasetError, save_dataset
+
+TINY = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 8})
+
+
+def tiny_config(**changes):
+    base = dict(
+        episodes=3, trajectories_per_episode=2, validation_arenas=2, validate_every=2, replay_episodes=2
+    )
+    return NirlConfig.default(**{**base, **changes})
+
+
+@pytest.fixture(scope="module")
+def demos(tmp_path_factory):
+    path = tmp_path_factory.mktemp("demos") / "demos.npz"
+    save_dataset(path, collect(TINY, ExpertConfig("rule"), episodes=3, seed=0))
+    return path
+
+
+def weights(run_dir):
+    state = load_checkpoint(run_dir)
+    return state["net_W1"], state["net_W2"], state["theta"]
+
+
+@pytest.mark.parametrize("variant", ["default", "paper"])
+def test_same_seed_gives_identical_weights(tmp_path, demos, variant):
+    config = NirlConfig.named(variant, episodes=2, trajectories_per_episode=2, validation_arenas=2)
+    for name in ("a", "b"):
+        train(tmp_path / name, TINY, demos, config, seed=3)
+    for x, y in zip(weights(tmp_path / "a"), weights(tmp_path / "b"), strict=True):
+        np.testing.assert_array_equal(x, y)
+    train(tmp_path / "c", TINY, demos, config, seed=4)
+    assert not np.array_equal(weights(tmp_path / "a")[0], weights(tmp_path / "c")[0])
+
+
+def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos):
+    config = tiny_config()
+    train(tmp_path / "whole", TINY, demos, config, seed=1)
+
+    def interrupt(metrics):
+        if metrics.episode == 1:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path / "split", TINY, demos, config, seed=1, on_metrics=interrupt)
+    assert int(load_checkpoint(tmp_path / "split")["iteration"]) == 2
+    train(tmp_path / "split", TINY, demos, config, seed=1, resume=True)
+    for x, y in zip(weights(tmp_path / "whole"), weights(tmp_path / "split"), strict=True):
+        np.testing.assert_array_equal(x, y)
+    lines = (tmp_path / "split" / "metrics.jsonl").read_text().splitlines()
+    assert len(lines) == 3
+    assert lines == (tmp_path / "whole" / "metrics.jsonl").read_text().splitlines()
+
+
+def test_runs_are_never_overwritten_or_mixed(tmp_path, demos):
+    config = tiny_config(episodes=1)
+    run = tmp_path / "run"
+    train(run, TINY, demos, config, seed=0)
+    before = (run / CHECKPOINT_FILE).read_bytes()
+    with pytest.raises(RunError, match="exists and is not empty; pass --resume"):
+        train(run, TINY, demos, config, seed=0)
+    with pytest.raises(RunError, match="trained with another config"):
+        train(run, TINY, demos, tiny_config(episodes=1, eta=5.0), seed=0, resume=True)
+    with pytest.raises(RunError, match="trained with another task"):
+        train(run, spec.replace(TINY, control={"speed": 3.0}), demos, config, seed=0, resume=True)
+    assert (run / CHECKPOINT_FILE).read_bytes() == before
+    (run / CHECKPOINT_FILE).write_bytes(before[:100])
+    with pytest.raises(RunError, match="corrupted"):
+        train(run, TINY, demos, config, seed=0, resume=True)
+    with pytest.raises(RunError, match="not a nirl-mj run directory"):
+        load_policy(tmp_path)
+
+
+def test_foreign_demonstrations_are_a_clear_error(tmp_path):
+    bad = tmp_path / "demos.npz"
+    np.savez(bad, something=np.zeros(3))
+    with pytest.raises(DatasetError):
+        train(tmp_path / "run", TINY, bad, tiny_config(), seed=0)
+    assert not (tmp_path / "run").exists()
+
+
+def test_trained_policy_and_named_reward_are_usable(tmp_path, demos):
+    run = tmp_path / "run"
+    train(run, TINY, demos, tiny_config(episodes=2), seed=0)
+    policy, record = load_policy(run)
+    assert 0 <= policy(np.zeros(16, dtype=np.float32) + np.eye(16)[7]) < N_ACTIONS
+    assert record["task"] == TINY.to_dict()
+    reward = RewardModel.load(run / "reward.json")
+    assert set(reward.named()) == set(reward_feature_names("extended"))
+    phi = np.array([[3, 0, 0, 0, 0, 0, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0]], dtype=np.float32)
+    r_all = reward.rewards_all_actions(phi)
+    assert r_all.shape == (1, N_ACTIONS)
+    assert reward.reward(phi, 4) == pytest.approx(r_all[0, 4])
