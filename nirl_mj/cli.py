@@ -47,7 +47,7 @@ def _episode_line(trajectory) -> str:
     )
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
+def _cmd_rollout(args: argparse.Namespace) -> int:
     from nirl_mj.rollout import PolicyAgent, run_episodes
     from nirl_mj.spec import apply_overrides, load_task
     from nirl_mj.task import make_env
@@ -73,6 +73,37 @@ def _cmd_run(args: argparse.Namespace) -> int:
     _print_summary(summary)
     if args.json:
         print(json.dumps({**summary, "task": spec.name, "policy": args.policy, "seed": args.seed}))
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from nirl_mj.pipeline import main_job
+    from nirl_mj.report import results_table
+    from nirl_mj.spec import apply_overrides, load_task
+
+    spec = apply_overrides(load_task(args.task), args.set)
+    bar = tqdm(unit="episode", file=sys.stderr, disable=args.quiet, desc="NIRL")
+
+    def progress(m) -> None:
+        bar.total = bar.total or None
+        bar.update()
+        bar.set_postfix(margin=f"{m.margin:.3f}", acc=f"{m.demo_accuracy:.2f}", succ=f"{m.success_rate:.1f}")
+
+    def log(text: str) -> None:
+        bar.write(text, file=sys.stderr)
+
+    try:
+        results = main_job(
+            args.out, spec, seed=args.seed, variant=args.variant, demos=args.demos, expert=args.expert,
+            episodes=args.episodes, tests=args.tests, workers=args.workers, resume=args.resume, log=log,
+            on_metrics=progress,
+        )  # fmt: skip
+    finally:
+        bar.close()
+    print(results_table(results))
+    print(f"report: {Path(args.out) / 'report.md'}")
+    if args.json:
+        print(json.dumps({name: r["success_rate"] for name, r in results.items()}))
     return 0
 
 
@@ -175,6 +206,93 @@ def _cmd_teleop(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train(args: argparse.Namespace) -> int:
+    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.learn.train import read_run, train
+    from nirl_mj.spec import apply_overrides, from_dict, load_task
+
+    if args.resume:
+        saved = read_run(args.out)  # continue with exactly the saved task and configuration
+        spec = from_dict(saved["task"], f"{args.out}/run.json")
+        config = NirlConfig(**saved["config"])
+        demos, seed = args.demos or saved["demos"], saved["seed"]
+    else:
+        if not args.demos:
+            raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
+        spec = apply_overrides(load_task(args.task), args.set)
+        changes = {"episodes": args.episodes} if args.episodes else {}
+        config = NirlConfig.named(args.variant, **changes)
+        demos, seed = args.demos, args.seed
+    done = _iterations_done(args.out) if args.resume else 0
+    with tqdm(
+        total=config.episodes, initial=done, unit="episode", file=sys.stderr, disable=args.quiet
+    ) as bar:
+
+        def progress(m) -> None:
+            bar.update()
+            bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
+                            succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
+                            else f"{m.validation_success:.2f}")  # fmt: skip
+
+        record = train(args.out, spec, demos, config, seed, args.resume, progress)
+    print(
+        f"trained {record['iterations']} iterations ({config.variant} variant); selected policy: iteration "
+        f"{record['selected_iteration']}; run in {args.out}"
+    )
+    return 0
+
+
+def _iterations_done(run_dir: str) -> int:
+    path = Path(run_dir) / "metrics.jsonl"
+    return len(path.read_text().splitlines()) if path.exists() else 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from nirl_mj.evaluate import domain_seed, evaluate
+    from nirl_mj.learn.train import load_policy
+    from nirl_mj.spec import apply_overrides, from_dict, load_task
+    from nirl_mj.task import make_env
+
+    policy, run = load_policy(args.run, args.which)
+    spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
+    spec = apply_overrides(spec, args.set)
+    seen = (
+        set(run.get("demo_seeds", []))
+        | set(run.get("validation_seeds", []))
+        | set(run.get("train_seeds", []))
+    )
+    seeds, i = [], 0
+    while len(seeds) < args.tests:  # held out: skip any arena the run has seen
+        s = domain_seed("test", args.seed, i)
+        i += 1
+        if s not in seen:
+            seeds.append(s)
+    env = make_env(spec)
+    with tqdm(total=args.tests, unit="test", file=sys.stderr, disable=args.quiet) as bar:
+        metrics, _ = evaluate(env, policy, seeds, "nirl", on_episode=lambda t: bar.update())
+    result = {**metrics, "task": spec.name, "seed": args.seed, "policy": args.which}
+    _merge_json(
+        Path(args.run) / "eval.json", f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}", result
+    )
+    print(
+        f"{args.tests} held-out tests of {spec.name}: success {metrics['success_rate']:.0%}  collision "
+        f"{metrics['collision_rate']:.0%}  timeout {metrics['timeout_rate']:.0%}  path "
+        f"{metrics['mean_path_length']:.1f} m  SPL {metrics['spl']:.2f}"
+    )
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _merge_json(path: Path, key: str, value: dict) -> None:
+    """Adds ``key`` to the JSON object in ``path`` (atomically), keeping the other entries."""
+    from nirl_mj.atomic import write_text
+
+    data = json.loads(path.read_text()) if path.exists() else {}
+    data[key] = value
+    write_text(path, json.dumps(data, indent=1))
+
+
 def _cmd_task(args: argparse.Namespace) -> int:
     from nirl_mj.spec import load_task
 
@@ -210,11 +328,33 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="nirl-mj", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
 
-    run = sub.add_parser(
+    main = sub.add_parser(
         "run",
-        help="the main job: roll out a policy on a task and print each episode's outcome",
-        description="Rolls out a reference policy on fresh seeded arenas and prints each episode's "
-        "outcome and a summary. (NIRL training joins this job when the learner lands.)",
+        help="the main job: demonstrations, NIRL, held-out evaluation next to the references, report",
+    )
+    main.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    main.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                      help="override a task value (repeatable)")  # fmt: skip
+    main.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
+    main.add_argument(
+        "--resume", action="store_true", help="continue a run in --out, skipping finished stages"
+    )
+    main.add_argument("--seed", type=int, default=0)
+    main.add_argument("--variant", choices=["default", "paper"], default="default")
+    main.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record")
+    main.add_argument("--expert", choices=["sensor", "planner", "rule"], default="sensor")
+    main.add_argument(
+        "--episodes", type=_positive_int, default=None, help="NIRL iterations (default: the variant's)"
+    )
+    main.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
+    main.add_argument("--workers", type=_positive_int, default=1, help="processes for the demonstrations")
+    main.add_argument("--json", action="store_true", help="print success rates as JSON on the last line")
+    main.add_argument("--quiet", action="store_true", help="no progress bar")
+    main.set_defaults(func=_cmd_run)
+
+    run = sub.add_parser(
+        "rollout",
+        help="roll out a reference policy on fresh arenas and print each episode's outcome",
     )
     run.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
     run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -224,7 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--policy", choices=sorted(POLICIES), default="rule")
     run.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    run.set_defaults(func=_cmd_run)
+    run.set_defaults(func=_cmd_rollout)
 
     demos = sub.add_parser("demos", help="record expert demonstrations to a dataset file")
     demos.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
@@ -259,6 +399,35 @@ def build_parser() -> argparse.ArgumentParser:
     teleop.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     teleop.set_defaults(func=_cmd_teleop)
 
+    train = sub.add_parser("train", help="train NIRL on demonstrations (resumable)")
+    train.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    train.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                       help="override a task value (repeatable)")  # fmt: skip
+    train.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
+    train.add_argument("--out", required=True, help="run directory")
+    train.add_argument("--variant", choices=["default", "paper"], default="default")
+    train.add_argument(
+        "--episodes", type=_positive_int, default=None, help="NIRL iterations (default: the variant's)"
+    )
+    train.add_argument("--seed", type=int, default=0)
+    train.add_argument(
+        "--resume", action="store_true", help="continue the run in --out from its last checkpoint"
+    )
+    train.add_argument("--quiet", action="store_true", help="no progress bar")
+    train.set_defaults(func=_cmd_train)
+
+    evaluate = sub.add_parser("eval", help="evaluate a trained run's greedy policy on held-out arenas")
+    evaluate.add_argument("--run", required=True, help="run directory")
+    evaluate.add_argument("--task", default=None, help="task (default: the run's own)")
+    evaluate.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                          help="override a task value (repeatable)")  # fmt: skip
+    evaluate.add_argument("--tests", type=_positive_int, default=100)
+    evaluate.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
+    evaluate.add_argument("--which", choices=["selected", "last"], default="selected")
+    evaluate.add_argument("--json", action="store_true", help="print the result as JSON on the last line")
+    evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
+    evaluate.set_defaults(func=_cmd_eval)
+
     inspect = sub.add_parser("inspect", help="validate a dataset file and print its summary")
     inspect.add_argument("path")
     inspect.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
@@ -274,12 +443,14 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
     from nirl_mj.layout import ArenaGenerationError
+    from nirl_mj.learn.train import RunError
     from nirl_mj.spec import SpecError
     from nirl_mj.trajectory import DatasetError
 
     try:
         return args.func(args)
-    except (SpecError, ArenaGenerationError, DatasetError, OSError, RuntimeError) as exc:
+    except (SpecError, ArenaGenerationError, DatasetError, RunError, OSError, RuntimeError) as exc:
+        # OSError covers FileExistsError: a run or file that would be overwritten.
         print(f"nirl-mj {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

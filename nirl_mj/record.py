@@ -14,6 +14,7 @@ arena is regenerated exactly as the environment drew it
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -113,15 +114,45 @@ def log_trajectory(rec: rr.RecordingStream, path: str, trajectory: Trajectory) -
 
 def record_demonstrations(path: str | os.PathLike, trajectories: Sequence[Trajectory]) -> Path:
     """Writes a ``.rrd`` with every demonstration's arena, path and actions, atomically."""
+    return record_run(path, trajectories, (), {})
+
+
+def log_training(rec: rr.RecordingStream, metrics: Sequence[dict], prefix: str = "training") -> None:
+    """Training scalars (margin, cost, weight changes, accuracies, success) on the ``episode`` timeline."""
+    keys = ("margin", "cost", "dw1", "dw2", "demo_accuracy", "demo_balanced_accuracy", "success_rate",
+            "collision_rate", "validation_success", "policy_entropy", "reward_spread")  # fmt: skip
+    for row in metrics:
+        rec.set_time("episode", sequence=int(row["episode"]))
+        for key in keys:
+            value = row.get(key)
+            if value is not None and np.isfinite(value):
+                rec.log(f"{prefix}/{key}", rr.Scalars(float(value)))
+    rec.reset_time()
+
+
+def record_run(
+    path: str | os.PathLike,
+    demos: Sequence[Trajectory],
+    metrics: Sequence[dict],
+    evaluations: dict[str, Sequence[Trajectory]],
+    max_paths: int = 10,
+) -> Path:
+    """Writes a run's recording, atomically: the demonstrations, the training scalars, and
+    up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     rec = rr.RecordingStream("nirl-mj")
     rec.save(tmp)
     try:
-        for i, trajectory in enumerate(trajectories):
-            prefix = f"demos/{i:03d}"
-            log_layout(rec, f"{prefix}/arena", layout_of(trajectory))
-            log_trajectory(rec, prefix, trajectory)
+        for i, trajectory in enumerate(demos):
+            log_layout(rec, f"demos/{i:03d}/arena", layout_of(trajectory))
+            log_trajectory(rec, f"demos/{i:03d}", trajectory)
+        log_training(rec, metrics)
+        for name, trajectories in evaluations.items():
+            slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")  # entity paths take no spaces
+            for i, trajectory in enumerate(trajectories[:max_paths]):
+                log_layout(rec, f"eval/{slug}/{i:03d}/arena", layout_of(trajectory))
+                log_trajectory(rec, f"eval/{slug}/{i:03d}", trajectory)
         rec.flush()
         rec.disconnect()
         os.replace(tmp, path)

@@ -71,7 +71,7 @@ def test_runs_are_never_overwritten_or_mixed(tmp_path, demos):
     with pytest.raises(RunError, match="exists and is not empty; pass --resume"):
         train(run, TINY, demos, config, seed=0)
     with pytest.raises(RunError, match="trained with another config"):
-        train(run, TINY, demos, tiny_config(episodes=1, eta=5.0), seed=0, resume=True)
+        train(run, TINY, demos, tiny_config(episodes=1, eta=7.5), seed=0, resume=True)
     with pytest.raises(RunError, match="trained with another task"):
         train(run, spec.replace(TINY, control={"speed": 3.0}), demos, config, seed=0, resume=True)
     assert (run / CHECKPOINT_FILE).read_bytes() == before

@@ -13,12 +13,12 @@ import pytest
 
 import nirl_mj
 from nirl_mj import spec as task_spec
+from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.experts.sensor import SensorExpert
 from nirl_mj.rollout import episode_seed
 from nirl_mj.task import Outcome
 
 SENSING_RANGE = 5.0  # metres from the outline, the default of tasks/navigate.toml
-from nirl_mj.drive import BODY_RADIUS
 
 
 def _planar(spec: task_spec.TaskSpec) -> task_spec.TaskSpec:

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from nirl_mj.atomic import write_text
 from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
 
 REWARD_FEATURES = ("paper", "extended")
@@ -99,7 +99,7 @@ class RewardModel:
     def save(self, path: str | os.PathLike) -> None:
         """Writes ``{"kind", "theta": {name: value}}`` as JSON, atomically."""
         text = json.dumps({"kind": self.kind, "theta": self.named()}, indent=1)
-        _atomic_write_text(Path(path), text)
+        write_text(path, text)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RewardModel:
@@ -109,16 +109,3 @@ class RewardModel:
         if set(data["theta"]) != set(names):
             raise ValueError(f"{path}: theta components do not match the {kind!r} reward features")
         return cls(np.array([data["theta"][n] for n in names]), kind)
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from nirl_mj import spec as specs
+from nirl_mj.atomic import write_npz, write_text
 from nirl_mj.evaluate import domain_seeds
 from nirl_mj.learn import network
 from nirl_mj.learn.nirl import Metrics, Nirl, NirlConfig, greedy_policy
@@ -34,32 +34,6 @@ POLICY_FILE, REWARD_FILE = "policy.npz", "reward.json"
 
 class RunError(ValueError):
     """A run directory is missing, foreign, corrupted or would be overwritten."""
-
-
-def _atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def read_run(run_dir: str | os.PathLike) -> dict:
@@ -145,7 +119,7 @@ def train(
         learner.load_state(load_checkpoint(run_dir))
         _truncate_metrics(run_dir / METRICS_FILE, learner.iteration)
     else:
-        _atomic_write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
+        write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
         (run_dir / METRICS_FILE).write_text("")
     env = make_env(specs.replace(task, robot={"drive": config.train_drive}))
     validation_seeds = record["validation_seeds"]
@@ -164,7 +138,7 @@ def train(
         metrics = learner.step(env, seeds, validate)
         with open(run_dir / METRICS_FILE, "a") as f:
             f.write(json.dumps(metrics.__dict__) + "\n")
-        _atomic_savez(run_dir / CHECKPOINT_FILE, learner.state())
+        write_npz(run_dir / CHECKPOINT_FILE, learner.state())
         if on_metrics:
             on_metrics(metrics)
     return finish(run_dir, learner, record)
@@ -175,7 +149,7 @@ def finish(run_dir: Path, learner: Nirl, record: dict) -> dict:
     chosen = learner.selected
     arrays = {f"selected/{k}": v for k, v in learner.kept[chosen].items()}
     arrays |= {f"last/{k}": v for k, v in learner.kept[-1].items()}
-    _atomic_savez(run_dir / POLICY_FILE, arrays)
+    write_npz(run_dir / POLICY_FILE, arrays)
     RewardModel(learner.thetas[chosen], learner.config.reward_features).save(run_dir / REWARD_FILE)
     n_train = learner.iteration * learner.config.trajectories_per_episode
     record = {
@@ -184,11 +158,11 @@ def finish(run_dir: Path, learner: Nirl, record: dict) -> dict:
         "selected_iteration": chosen,
         "train_seeds": domain_seeds("train", record["seed"], n_train),
     }
-    _atomic_write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
+    write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
     return record
 
 
 def _truncate_metrics(path: Path, iterations: int) -> None:
     """Keeps the first ``iterations`` lines: a crash may have written one past the checkpoint."""
     lines = path.read_text().splitlines(keepends=True) if path.exists() else []
-    _atomic_write_text(path, "".join(lines[:iterations]))
+    write_text(path, "".join(lines[:iterations]))
