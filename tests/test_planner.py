@@ -16,24 +16,13 @@ from nirl_mj import spec as task_spec
 from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.experts.planner import PlannerExpert, arc_model, cost_field
 from nirl_mj.layout import Layout, Obstacle
-from nirl_mj.rollout import episode_seed
-from nirl_mj.task import Outcome
+from nirl_mj.rollout import episode_seed, run_episode
 
 
-def run(env, expert: PlannerExpert, seed: int | None = None) -> tuple[str, list[int], np.ndarray]:
+def run(env, expert: PlannerExpert, seed: int = 0) -> tuple[str, list[int], np.ndarray]:
     """One episode: (outcome name, actions, poses (T + 1, 3) in m/rad)."""
-    if seed is not None:
-        env.random_state.seed(seed)
-    timestep = env.reset()
-    expert.reset(env, timestep)
-    actions, poses = [], [timestep.observation["pose"].copy()]
-    while not timestep.last():
-        action = expert.act(timestep)
-        assert action in range(6)
-        actions.append(action)
-        timestep = env.step(action)
-        poses.append(timestep.observation["pose"].copy())
-    return Outcome(int(timestep.observation["outcome"])).name.lower(), actions, np.array(poses)
+    trajectory = run_episode(env, expert, seed)
+    return trajectory.outcome, trajectory.actions.tolist(), trajectory.poses
 
 
 def small_arena(

@@ -15,7 +15,7 @@ import nirl_mj
 from nirl_mj import spec as task_spec
 from nirl_mj.drive import BODY_RADIUS
 from nirl_mj.experts.sensor import SensorExpert
-from nirl_mj.rollout import episode_seed
+from nirl_mj.rollout import episode_seed, run_episode
 from nirl_mj.task import Outcome
 
 SENSING_RANGE = 5.0  # metres from the outline, the default of tasks/navigate.toml
@@ -37,17 +37,8 @@ def _scene(*obstacles: dict) -> task_spec.TaskSpec:
 
 def _drive(env, expert: SensorExpert, seed: int) -> tuple[list[int], np.ndarray, Outcome]:
     """One episode: the actions, the poses (T + 1, 3) before each action and at the end, the outcome."""
-    env.random_state.seed(seed)
-    timestep = env.reset()
-    expert.reset(env, timestep)
-    actions, poses = [], [timestep.observation["pose"].copy()]
-    while not timestep.last():
-        action = expert.act(timestep)
-        assert action in range(6)
-        actions.append(action)
-        timestep = env.step(action)
-        poses.append(timestep.observation["pose"].copy())
-    return actions, np.array(poses), Outcome(int(timestep.observation["outcome"]))
+    trajectory = run_episode(env, expert, seed)
+    return trajectory.actions.tolist(), trajectory.poses, Outcome[trajectory.outcome.upper()]
 
 
 @pytest.fixture(scope="module")
