@@ -32,3 +32,24 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
     assert "pass --resume" in capsys.readouterr().err
     assert main([*args, "--resume"]) == 0
     assert (out / "demos.npz").read_bytes() == before
+
+
+def test_train_then_eval_from_the_command_line(tmp_path, capsys):
+    task = tmp_path / "tiny.toml"
+    task.write_text('[robot]\ndrive = "planar"\n[control]\nstep_budget = 8\n')
+    demos = tmp_path / "demos.npz"
+    assert main(["demos", "--task", str(task), "--expert", "rule", "--episodes", "2", "--out", str(demos),
+                 "--workers", "1", "--quiet"]) == 0  # fmt: skip
+    run = tmp_path / "run"
+    assert main(["train", "--task", str(task), "--demos", str(demos), "--out", str(run), "--episodes", "2",
+                 "--quiet"]) == 0  # fmt: skip
+    assert main(["train", "--out", str(run), "--resume", "--quiet"]) == 0  # already finished: a no-op
+    capsys.readouterr()
+    assert main(["eval", "--run", str(run), "--tests", "3", "--json", "--quiet"]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in ("success_rate", "collision_rate", "timeout_rate", "mean_path_length", "spl", "tests"):
+        assert key in result
+    assert result["tests"] == 3
+    assert len(json.loads((run / "eval.json").read_text())) == 1
+    assert main(["eval", "--run", str(tmp_path), "--quiet"]) == 2
+    assert "not a nirl-mj run directory" in capsys.readouterr().err

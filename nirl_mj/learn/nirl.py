@@ -56,6 +56,10 @@ class NirlConfig:
     eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
     reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
     matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums
+    # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
+    # discounted sum (its own behaviour); 0: the expert's own continuation (SCIRL heuristic,
+    # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E)); in between: a mixture.
+    future_mix: float = 1.0
     margin_loss: float = 0.1  # l(s, a) for a != a_E (paper: 1)
     mmp_lambda: float = 0.0  # lambda_1 of eq. 13
     mmp_steps: int = 30
@@ -251,6 +255,9 @@ class Nirl:
         self.demo_phi, self.demo_actions = stack_pairs(demos)
         self.demo_inputs = network_inputs(self.demo_phi, config.input_scaling)
         self._expert = self._expert_matching(demos)
+        # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
+        own = pair_features(self.demo_phi, self.demo_actions, config.reward_features)
+        self._expert_next = (self._expert - own) / config.gamma
         n_theta = all_action_features(self.demo_phi[:1], config.reward_features).shape[-1]
         self.theta = np.zeros(n_theta)
         self.replay: list[Transitions] = []
@@ -280,7 +287,8 @@ class Nirl:
             return np.broadcast_to(mu, (len(self.demo_actions), N_ACTIONS, mu.size)).copy()
         # Occupancy: f(s, a) now, then what the learner's own behaviour collects on average.
         mean_sum = np.concatenate([mmp.discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
-        return all_action_features(self.demo_phi, c.reward_features) + c.gamma * mean_sum
+        future = c.future_mix * mean_sum + (1.0 - c.future_mix) * self._expert_next
+        return all_action_features(self.demo_phi, c.reward_features) + c.gamma * future[..., None, :]
 
     def _margin_loss(self) -> np.ndarray:
         """l(s, a) for every demonstrated state and action, (N, 6)."""
