@@ -36,7 +36,7 @@ def measure(drive: str, obstacles: int, decisions: int, seed: int = 0) -> dict:
     )
     env = make_env(spec, seed=seed)
     model, data = env.physics.model.ptr, env.physics.data.ptr
-    substeps = round(spec.control.decision_period / spec.control.physics_timestep)
+    substeps = round(spec.control.decision_period / spec.physics_timestep)
     what = mujoco.mjtState.mjSTATE_INTEGRATION
     before = np.empty(mujoco.mj_stateSize(model, what))
     after = np.empty_like(before)

@@ -65,10 +65,8 @@ class NavigationTask(composer.Task):
         # Composer's base arena asks for noslip iterations; the drive models are
         # tuned without them and they cost about 20 % of the step time.
         self._arena.mjcf_model.option.noslip_iterations = 0
-        self.set_timesteps(
-            control_timestep=control.decision_period, physics_timestep=control.physics_timestep
-        )
-        self._substeps_per_command = round(control.command_period / control.physics_timestep)
+        self.set_timesteps(control_timestep=control.decision_period, physics_timestep=spec.physics_timestep)
+        self._substeps_per_command = round(control.command_period / spec.physics_timestep)
         self._commands_per_decision = round(control.decision_period / control.command_period)
         self._drive = DriveController()
         self._budget = spec.step_budget

@@ -195,3 +195,33 @@ def test_headless_render_shows_the_robot(camera):
     geom_ids = segmentation[..., 0][segmentation[..., 1] == 5]  # mjOBJ_GEOM
     robot_geoms = physics.model.body_rootid[physics.model.geom_bodyid[geom_ids]] == robot_root
     assert robot_geoms.sum() > 20  # pixels of the robot
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.0])
+def test_default_env_drives_as_commanded(speed):
+    """Through the real action path at the default (auto) timestep: forward speed within
+    2 %, heading within 1 degree; each turn by its angle within 3 degrees; backward."""
+    task = spec.replace(scene(start=(20.0, 50.0)), control={"speed": speed})
+    assert task.physics_timestep == 0.01
+    _, poses = rollout(make_env(task, seed=0), [FORWARD] * 8)
+    measured = (poses[-1][0] - poses[-3][0]) / (2 * task.control.decision_period)
+    assert measured == pytest.approx(speed, rel=0.02)
+    assert abs(math.degrees(poses[-1][2])) < 1.0
+    for action, angle in [(1, 30), (2, 60), (3, -30), (4, -60)]:
+        _, poses = rollout(make_env(task, seed=0), [FORWARD] * 4 + [action, FORWARD])
+        assert math.degrees(poses[-1][2] - poses[-3][2]) == pytest.approx(angle, abs=3.0)
+    _, poses = rollout(make_env(task, seed=0), [BACKWARD] * 4)
+    assert poses[-1][0] < poses[0][0] - 1.0
+
+
+def test_drive_fidelities_agree_through_the_env():
+    actions = [0, 1, 0, 2, 0, 0, 3, 4, 0, 5, 5, 0, 1, 1, 0, 3, 0, 2, 4, 0]
+    ends = {}
+    for drive in ("tyre", "rollers", "planar"):
+        task = spec.replace(scene(start=(20.0, 50.0)), robot={"drive": drive})
+        _, poses = rollout(make_env(task, seed=0), actions)
+        ends[drive] = poses[-1]
+    travelled = math.hypot(ends["planar"][0] - 20.0, ends["planar"][1] - 50.0)
+    for drive in ("tyre", "rollers"):
+        gap = math.hypot(*(ends[drive][:2] - ends["planar"][:2]))
+        assert gap < 0.05 * travelled, (drive, gap, travelled)
