@@ -24,7 +24,7 @@ from dm_env import specs
 
 from nirl_mj import features
 from nirl_mj.arena import NavigationArena
-from nirl_mj.drive import BODY_RADIUS, DriveController
+from nirl_mj.drive import BODY_RADIUS, DriveController, body_twist
 from nirl_mj.layout import Layout, generate_layout
 from nirl_mj.robot import Robotino
 from nirl_mj.sensing import RangeSensors, Scan
@@ -158,6 +158,8 @@ class NavigationTask(composer.Task):
             self._spec.sensing.range,
             BODY_RADIUS,
         )
+        ray_gap = features.SECTOR_WIDTH / self._spec.robot.rays_per_sensor
+        self._hidden_margin = 0.5 + (self._spec.sensing.range + BODY_RADIUS) * math.sin(ray_gap / 2)
         self._ground_id = physics.bind(self._arena.ground_geom).element_id
         self._base_id = physics.bind(self._robot.base_body).element_id
         self._origin_id = physics.bind(self._robot.sensor_origin).element_id
@@ -180,6 +182,9 @@ class NavigationTask(composer.Task):
         wheel_commands = self._drive.plan(
             action, control.speed, control.decision_period, control.command_period, control.max_accel
         )
+        if self._nothing_within_reach():
+            self._step_unchecked(physics, wheel_commands)
+            return
         moving = self._spec.arena.moving_obstacles > 0
         last = self._commands_per_decision - 1
         for k in range(self._commands_per_decision):
@@ -194,6 +199,40 @@ class NavigationTask(composer.Task):
                 # Decided: hold the robot still for composer's final substep.
                 self._robot.set_wheel_speeds(physics, np.zeros(3))
                 break
+
+    def _nothing_within_reach(self) -> bool:
+        """True when no contact and no arrival can happen within this decision.
+
+        That is: no moving obstacles, and both the nearest sensed obstacle and the
+        target's rim are farther than the robot can travel in one decision (with
+        20 % to spare) plus ``self._hidden_margin``, what the gaps between rays can
+        hide (0.5 m, plus half the gap between neighbouring rays at full range: a
+        box corner can poke at most that far between two rays). The end-of-decision
+        check in after_step stays as a safety net.
+        """
+        if self._spec.arena.moving_obstacles:
+            return False
+        reach = 1.2 * self._spec.control.speed * self._spec.control.decision_period + self._hidden_margin
+        if reach >= self._spec.sensing.range:
+            return False  # beyond the sensing range nothing is known
+        nearest = float(self._scan.rays.min())
+        return nearest > reach and self._scan.target_distance - self._spec.arena.target_radius > reach
+
+    def _step_unchecked(self, physics, wheel_commands: np.ndarray) -> None:
+        """Runs the decision with one mj_step call per run of equal wheel commands."""
+        period = self._spec.control.command_period
+        # Planar commands are world-frame velocities for the current heading:
+        # while turning they change every command even if the wheel speeds do not.
+        n_cmd = len(wheel_commands)
+        change = np.any(wheel_commands[1:] != wheel_commands[:-1], axis=1)
+        if self._robot.fidelity == "planar":
+            change |= body_twist(wheel_commands[:-1])[:, 2] != 0
+        starts = [0, *(np.flatnonzero(change) + 1).tolist()]
+        for k, j in zip(starts, [*starts[1:], n_cmd], strict=True):
+            self._robot.set_wheel_speeds(physics, wheel_commands[k], period)
+            n = (j - k) * self._substeps_per_command - (1 if j == n_cmd else 0)
+            if n:
+                mujoco.mj_step(self._model, self._data, n)
 
     def after_step(self, physics, random_state) -> None:
         self._steps += 1

@@ -48,7 +48,7 @@ class NirlConfig:
     """Every choice of the learner. ``paper()`` and ``default()`` give the two variants."""
 
     variant: str = "default"
-    episodes: int = 120
+    episodes: int = 60  # ~2-4 min per run on one core (planar training drive)
     trajectories_per_episode: int = 10
     gamma: float = 0.65  # eq. 14
     alpha: float = 0.8  # eq. 14
@@ -59,7 +59,7 @@ class NirlConfig:
     # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
     # discounted sum (its own behaviour); 0: the expert's own continuation (SCIRL heuristic,
     # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E)); in between: a mixture.
-    future_mix: float = 1.0
+    future_mix: float = 0.0
     margin_loss: float = 0.1  # l(s, a) for a != a_E (paper: 1)
     mmp_lambda: float = 0.0  # lambda_1 of eq. 13
     mmp_steps: int = 30
@@ -89,6 +89,8 @@ class NirlConfig:
             eta_final=10.0,
             reward_features="paper",
             matching="paper",
+            future_mix=1.0,
+            episodes=120,
             margin_loss=1.0,
             mmp_step_decay=0.0,
             reward_scaling=False,
