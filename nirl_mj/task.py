@@ -182,23 +182,7 @@ class NavigationTask(composer.Task):
         wheel_commands = self._drive.plan(
             action, control.speed, control.decision_period, control.command_period, control.max_accel
         )
-        if self._nothing_within_reach():
-            self._step_unchecked(physics, wheel_commands)
-            return
-        moving = self._spec.arena.moving_obstacles > 0
-        last = self._commands_per_decision - 1
-        for k in range(self._commands_per_decision):
-            self._robot.set_wheel_speeds(physics, wheel_commands[k], control.command_period)
-            if moving:
-                self._arena.move_obstacles(physics, control.command_period)
-            # Composer takes the decision's very last substep itself.
-            n = self._substeps_per_command - (1 if k == last else 0)
-            if n:
-                mujoco.mj_step(self._model, self._data, n)
-            if self._check_outcome():
-                # Decided: hold the robot still for composer's final substep.
-                self._robot.set_wheel_speeds(physics, np.zeros(3))
-                break
+        self._run_decision(physics, wheel_commands, checked=not self._nothing_within_reach())
 
     def _nothing_within_reach(self) -> bool:
         """True when no contact and no arrival can happen within this decision.
@@ -218,21 +202,37 @@ class NavigationTask(composer.Task):
         nearest = float(self._scan.rays.min())
         return nearest > reach and self._scan.target_distance - self._spec.arena.target_radius > reach
 
-    def _step_unchecked(self, physics, wheel_commands: np.ndarray) -> None:
-        """Runs the decision with one mj_step call per run of equal wheel commands."""
+    def _run_decision(self, physics, wheel_commands: np.ndarray, checked: bool) -> None:
+        """Steps the physics through one decision, (n_cmd, 3) wheel commands.
+
+        Checked: one command period at a time, moving the moving obstacles and
+        stopping once the outcome is decided. Unchecked: one ``mj_step`` call per
+        run of equal commands (the same physics, step for step).
+        """
         period = self._spec.control.command_period
-        # Planar commands are world-frame velocities for the current heading:
-        # while turning they change every command even if the wheel speeds do not.
         n_cmd = len(wheel_commands)
-        change = np.any(wheel_commands[1:] != wheel_commands[:-1], axis=1)
-        if self._robot.fidelity == "planar":
-            change |= body_twist(wheel_commands[:-1])[:, 2] != 0
-        starts = [0, *(np.flatnonzero(change) + 1).tolist()]
+        if checked:
+            starts = list(range(n_cmd))
+        else:
+            change = np.any(wheel_commands[1:] != wheel_commands[:-1], axis=1)
+            if self._robot.fidelity == "planar":
+                # Planar commands are world-frame velocities for the current heading:
+                # while turning they change every period even if the wheel speeds do not.
+                change |= body_twist(wheel_commands[:-1])[:, 2] != 0
+            starts = [0, *(np.flatnonzero(change) + 1).tolist()]
+        moving = self._spec.arena.moving_obstacles > 0
         for k, j in zip(starts, [*starts[1:], n_cmd], strict=True):
             self._robot.set_wheel_speeds(physics, wheel_commands[k], period)
+            if moving:
+                self._arena.move_obstacles(physics, period * (j - k))
+            # Composer takes the decision's very last substep itself.
             n = (j - k) * self._substeps_per_command - (1 if j == n_cmd else 0)
             if n:
                 mujoco.mj_step(self._model, self._data, n)
+            if checked and self._check_outcome():
+                # Decided: hold the robot still for composer's final substep.
+                self._robot.set_wheel_speeds(physics, np.zeros(3))
+                break
 
     def after_step(self, physics, random_state) -> None:
         self._steps += 1

@@ -225,3 +225,16 @@ def test_drive_fidelities_agree_through_the_env():
     for drive in ("tyre", "rollers"):
         gap = math.hypot(*(ends[drive][:2] - ends["planar"][:2]))
         assert gap < 0.05 * travelled, (drive, gap, travelled)
+
+
+def test_unchecked_decisions_are_the_same_physics_step_for_step(monkeypatch):
+    # Far from everything, decisions run as one mj_step call per command change;
+    # checking every command period instead must give the very same trajectory.
+    actions = [FORWARD, LEFT60, FORWARD, 3, BACKWARD, FORWARD, 4, FORWARD]
+    for drive in ("tyre", "planar"):
+        task = spec.replace(scene(start=(20.0, 50.0)), robot={"drive": drive})
+        _, fast = rollout(make_env(task, seed=0), actions)
+        with monkeypatch.context() as m:
+            m.setattr("nirl_mj.task.NavigationTask._nothing_within_reach", lambda self: False)
+            _, checked = rollout(make_env(task, seed=0), actions)
+        np.testing.assert_array_equal(fast, checked)
