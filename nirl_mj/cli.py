@@ -221,7 +221,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
         spec = apply_overrides(load_task(args.task), args.set)
         changes = {"episodes": args.episodes} if args.episodes else {}
-        config = NirlConfig.named(args.variant, **changes)
+        config = NirlConfig.named(args.variant, **changes, **_config_overrides(args.config))
         demos, seed = args.demos, args.seed
     done = _iterations_done(args.out) if args.resume else 0
     with tqdm(
@@ -242,38 +242,63 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _config_overrides(assignments: list[str]) -> dict:
+    """``KEY=VALUE`` pairs for NirlConfig (VALUE in TOML syntax), checked against its fields."""
+    import dataclasses
+    import tomllib
+
+    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.spec import SpecError
+
+    fields = {f.name: f.type for f in dataclasses.fields(NirlConfig)}
+    out = {}
+    for text in assignments:
+        key, sep, value = text.partition("=")
+        key = key.strip()
+        if not sep or key not in fields:
+            raise SpecError(f"--config {text!r}: expected KEY=VALUE with KEY one of: {', '.join(fields)}")
+        try:
+            out[key] = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = value.strip()
+    return out
+
+
 def _iterations_done(run_dir: str) -> int:
     path = Path(run_dir) / "metrics.jsonl"
     return len(path.read_text().splitlines()) if path.exists() else 0
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from nirl_mj.evaluate import domain_seed, evaluate
+    from nirl_mj.evaluate import evaluate, held_out_seeds
     from nirl_mj.learn.train import load_policy
     from nirl_mj.spec import apply_overrides, from_dict, load_task
     from nirl_mj.task import make_env
+    from nirl_mj.trajectory import load_dataset
 
-    policy, run = load_policy(args.run, args.which)
-    spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
+    if args.run:
+        policy, run = load_policy(args.run, args.which)
+        spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
+        seen = {*run.get("demo_seeds", []), *run.get("validation_seeds", []), *run.get("train_seeds", [])}
+        name = "nirl"
+    else:
+        demos = load_dataset(args.demos) if args.demos else []
+        policy, spec, name = _reference_policy(args, demos), load_task(args.task or "navigate"), args.policy
+        seen = {t.arena_seed for t in demos}
     spec = apply_overrides(spec, args.set)
-    seen = (
-        set(run.get("demo_seeds", []))
-        | set(run.get("validation_seeds", []))
-        | set(run.get("train_seeds", []))
-    )
-    seeds, i = [], 0
-    while len(seeds) < args.tests:  # held out: skip any arena the run has seen
-        s = domain_seed("test", args.seed, i)
-        i += 1
-        if s not in seen:
-            seeds.append(s)
+    seeds = held_out_seeds(args.seed, args.tests, seen)
     env = make_env(spec)
     with tqdm(total=args.tests, unit="test", file=sys.stderr, disable=args.quiet) as bar:
-        metrics, _ = evaluate(env, policy, seeds, "nirl", on_episode=lambda t: bar.update())
-    result = {**metrics, "task": spec.name, "seed": args.seed, "policy": args.which}
-    _merge_json(
-        Path(args.run) / "eval.json", f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}", result
-    )
+        metrics, _ = evaluate(env, policy, seeds, name, on_episode=lambda t: bar.update())
+    result = {
+        **metrics,
+        "task": spec.name,
+        "seed": args.seed,
+        "policy": args.which if args.run else args.policy,
+    }
+    if args.run:
+        key = f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}"
+        _merge_json(Path(args.run) / "eval.json", key, result)
     print(
         f"{args.tests} held-out tests of {spec.name}: success {metrics['success_rate']:.0%}  collision "
         f"{metrics['collision_rate']:.0%}  timeout {metrics['timeout_rate']:.0%}  path "
@@ -282,6 +307,19 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result))
     return 0
+
+
+def _reference_policy(args: argparse.Namespace, demos: list):
+    """A reference policy for ``eval --policy``: forward, rule, or behaviour cloning of --demos."""
+    from nirl_mj.policies import POLICIES
+
+    if args.policy != "bc":
+        return POLICIES[args.policy]
+    if not demos:
+        raise FileNotFoundError("eval --policy bc needs --demos (the demonstrations to clone)")
+    from nirl_mj.learn.bc import behaviour_cloning
+
+    return behaviour_cloning(demos, seed=args.train_seed)
 
 
 def _merge_json(path: Path, key: str, value: dict) -> None:
@@ -413,11 +451,21 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--resume", action="store_true", help="continue the run in --out from its last checkpoint"
     )
+    train.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
     train.add_argument("--quiet", action="store_true", help="no progress bar")
     train.set_defaults(func=_cmd_train)
 
     evaluate = sub.add_parser("eval", help="evaluate a trained run's greedy policy on held-out arenas")
-    evaluate.add_argument("--run", required=True, help="run directory")
+    who = evaluate.add_mutually_exclusive_group(required=True)
+    who.add_argument("--run", help="run directory")
+    who.add_argument(
+        "--policy", choices=["forward", "rule", "bc"], help="a reference policy instead of a run"
+    )
+    evaluate.add_argument(
+        "--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)"
+    )
+    evaluate.add_argument("--train-seed", type=int, default=0, help="with --policy bc: its training seed")
     evaluate.add_argument("--task", default=None, help="task (default: the run's own)")
     evaluate.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                           help="override a task value (repeatable)")  # fmt: skip

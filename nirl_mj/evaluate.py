@@ -32,6 +32,17 @@ def domain_seeds(domain: str, seed: int, count: int, start: int = 0) -> list[int
     return [domain_seed(domain, seed, i) for i in range(start, start + count)]
 
 
+def held_out_seeds(seed: int, count: int, seen: set[int]) -> list[int]:
+    """``count`` test-arena seeds of ``seed``, skipping any arena in ``seen``."""
+    seeds, i = [], 0
+    while len(seeds) < count:
+        s = domain_seed("test", seed, i)
+        i += 1
+        if s not in seen:
+            seeds.append(s)
+    return seeds
+
+
 def metrics_of(trajectories: list[Trajectory]) -> dict:
     """success/collision/timeout rates, mean path length (metres) and SPL over trajectories."""
     n = len(trajectories)

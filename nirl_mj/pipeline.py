@@ -24,24 +24,13 @@ from pathlib import Path
 from nirl_mj import spec as specs
 from nirl_mj.atomic import write_text
 from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.evaluate import domain_seed, evaluate
+from nirl_mj.evaluate import evaluate, held_out_seeds
 from nirl_mj.learn.bc import behaviour_cloning
 from nirl_mj.learn.nirl import NirlConfig
 from nirl_mj.learn.train import load_policy, read_run, train
 from nirl_mj.policies import always_forward, rule_policy
 from nirl_mj.report import paths_plot, read_metrics, results_table, training_plots
 from nirl_mj.trajectory import load_dataset, save_dataset
-
-
-def held_out_seeds(seed: int, count: int, seen: set[int]) -> list[int]:
-    """``count`` test-arena seeds of ``seed``, skipping any arena in ``seen``."""
-    seeds, i = [], 0
-    while len(seeds) < count:
-        s = domain_seed("test", seed, i)
-        i += 1
-        if s not in seen:
-            seeds.append(s)
-    return seeds
 
 
 def main_job(
