@@ -21,9 +21,9 @@ from nirl_mj.spec import load_task
 from nirl_mj.task import make_env
 
 try:
-    from report import write_section
+    from report import markdown_table, write_section
 except ImportError:  # run as a module
-    from bench.report import write_section
+    from bench.report import markdown_table, write_section
 
 
 class _Timed:
@@ -87,23 +87,36 @@ def main() -> None:
         collect(load_task("navigate"), ExpertConfig("sensor"), args.episodes, seed=0, workers=workers)
         scaling.append((workers, time.perf_counter() - t0))
         print(f"collect, {workers} worker(s): {scaling[-1][1]:.1f} s")
-    lines = [
-        "| expert | trajectories/s | decisions/s | expert ms/decision "
-        "| expert time / env.step time | success |",
-        "|---|---|---|---|---|---|",
+    header = [
+        "expert",
+        "trajectories/s",
+        "decisions/s",
+        "expert ms/decision",
+        "expert / env.step time",
+        "success",
     ]
-    for r in rows:
-        lines.append(
-            f"| {r['expert']} | {r['trajectories_per_s']:.2f} | {r['steps_per_s']:.0f} | "
-            f"{r['expert_ms_per_decision']:.3f} | {r['expert_share']:.1%} | {r['success']:.0%} |"
-        )
-    lines += ["", "| `collect` (sensor expert) | wall time (s) | speed-up |", "|---|---|---|"]
-    for workers, seconds in scaling:
-        lines.append(f"| {workers} worker(s) | {seconds:.1f} | {scaling[0][1] / seconds:.2f}x |")
+    experts = markdown_table(
+        header,
+        [
+            [
+                r["expert"],
+                f"{r['trajectories_per_s']:.2f}",
+                f"{r['steps_per_s']:.0f}",
+                f"{r['expert_ms_per_decision']:.3f}",
+                f"{r['expert_share']:.1%}",
+                f"{r['success']:.0%}",
+            ]
+            for r in rows
+        ],
+    )
+    workers = markdown_table(
+        ["`collect` (sensor expert)", "wall time (s)", "speed-up"],
+        [[f"{w} worker(s)", f"{sec:.1f}", f"{scaling[0][1] / sec:.2f}x"] for w, sec in scaling],
+    )
     body = (
         f"{args.episodes} episodes of tasks/navigate.toml (tyre drive) per expert, one process; then "
         "`collect` with 1 and 2 processes (spawned; includes their start-up). Target: expert "
-        "decisions at most 10 % of the simulation time.\n\n" + "\n".join(lines)
+        "decisions at most 10 % of the simulation time.\n\n" + experts + "\n\n" + workers
     )
     if not args.no_write:
         write_section("Demonstrations (bench/bench_demos.py)", body)

@@ -20,9 +20,9 @@ from nirl_mj import spec as specs
 from nirl_mj.task import make_env
 
 try:
-    from report import write_section
+    from report import markdown_table, write_section
 except ImportError:  # run as a module
-    from bench.report import write_section
+    from bench.report import markdown_table, write_section
 
 SEQUENCE = [0, 1, 0, 2, 0, 0, 3, 4, 0, 5, 5, 0, 1, 1, 0, 3, 0, 2, 4, 0]
 START = (20.0, 50.0)
@@ -70,24 +70,28 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-write", action="store_true", help="print only")
     args = parser.parse_args()
-    lines = [
-        "| drive | speed (m/s) | timestep (s) | forward speed error | 60-degree turn (deg) "
-        "| end pose vs planar |",
-        "|---|---|---|---|---|---|",
-    ]
+    rows = []
     for drive in ("tyre", "rollers", "planar"):
         for speed in (1.0, 2.0, 3.0):
             r = measure(drive, speed)
-            row = (
-                f"| {drive} | {speed:.0f} | {r['timestep']} | {r['speed_error']:+.2%} | {r['turn60']:.1f} | "
-                f"{r['end_gap']:.2%} |"
-            )
-            print(row)
-            lines.append(row)
+            rows.append([drive, f"{speed:.0f}", str(r["timestep"]), f"{r['speed_error']:+.2%}",
+                         f"{r['turn60']:.1f}", f"{r['end_gap']:.2%}"])  # fmt: skip
+            print(" | ".join(rows[-1]))
+    table = markdown_table(
+        [
+            "drive",
+            "speed (m/s)",
+            "timestep (s)",
+            "forward speed error",
+            "60-degree turn (deg)",
+            "end pose vs planar",
+        ],
+        rows,
+    )
     body = (
         "Empty floor, the task's default (auto) timestep; the turn is taken from cruise and measured "
         "over its decision and the next; the end-pose gap is after a fixed 20-action sequence, as a "
-        "share of the distance travelled.\n\n" + "\n".join(lines)
+        "share of the distance travelled.\n\n" + table
     )
     if not args.no_write:
         write_section("Drive accuracy (bench/drive_accuracy.py)", body)

@@ -63,3 +63,9 @@ def write_section(name: str, body: str) -> None:
     )
     PERFORMANCE_MD.parent.mkdir(parents=True, exist_ok=True)
     write_text(PERFORMANCE_MD, text)
+
+
+def markdown_table(header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table from a header and rows of already formatted cells."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in rows])

@@ -2,8 +2,11 @@
 
 The data path, one module each: ``spec`` (task files) -> ``layout``/``arena``
 (procedural arenas) -> ``robot``/``drive`` (MJCF Robotino, omni-drive
-kinematics) -> ``task`` (the dm_control composer task) -> ``sensing`` (rays)
--> ``features`` (phi(s), f(s, a)).
+kinematics) -> ``task`` (the dm_control composer task, ``make_env``) ->
+``sensing`` (rays) -> ``features`` (phi(s), f(s, a)) -> ``experts``,
+``demos``, ``trajectory`` (demonstrations and their file format) -> ``learn``
+(NIRL, behaviour cloning) -> ``evaluate`` -> ``record``/``report``/``pipeline``
+(Rerun, figures, the main job) -> ``cli`` (the ``nirl-mj`` command).
 """
 
 import os

@@ -186,7 +186,9 @@ def _cmd_teleop(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     _check_output(out, args.overwrite)
-    env = make_env(args.task)
+    from nirl_mj.spec import apply_overrides, load_task
+
+    env = make_env(apply_overrides(load_task(args.task), args.set))
     print(keys_doc.split("\n\n", 2)[2], file=sys.stderr)
     trajectories = []
 
@@ -359,6 +361,14 @@ def _probability(text: str) -> float:
     return value
 
 
+def _add_task_arguments(parser: argparse.ArgumentParser, default: str | None = "navigate") -> None:
+    """--task and --set, the same on every command that builds an environment."""
+    helps = "task name under tasks/ or a .toml path" + ("" if default else " (default: the run's own)")
+    parser.add_argument("--task", default=default, help=helps)
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
+
+
 def build_parser() -> argparse.ArgumentParser:
     from nirl_mj.experts import EXPERT_KINDS
     from nirl_mj.policies import POLICIES
@@ -370,9 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="the main job: demonstrations, NIRL, held-out evaluation next to the references, report",
     )
-    main.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
-    main.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                      help="override a task value (repeatable)")  # fmt: skip
+    _add_task_arguments(main)
     main.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     main.add_argument(
         "--resume", action="store_true", help="continue a run in --out, skipping finished stages"
@@ -394,9 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
         "rollout",
         help="roll out a reference policy on fresh arenas and print each episode's outcome",
     )
-    run.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
-    run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
+    _add_task_arguments(run)
     run.add_argument("--episodes", type=_positive_int, default=10)
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--policy", choices=sorted(POLICIES), default="rule")
@@ -405,9 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_rollout)
 
     demos = sub.add_parser("demos", help="record expert demonstrations to a dataset file")
-    demos.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
-    demos.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
+    _add_task_arguments(demos)
     demos.add_argument("--episodes", type=_positive_int, default=30)
     demos.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
     demos.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default="sensor",
@@ -430,7 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
     teleop = sub.add_parser(
         "teleop", help="drive the robot from the keyboard in MuJoCo's viewer and record the episodes"
     )
-    teleop.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
+    _add_task_arguments(teleop)
     teleop.add_argument("--episodes", type=_positive_int, default=30)
     teleop.add_argument("--seed", type=int, default=0)
     teleop.add_argument("--out", required=True, help="dataset path (.npz)")
@@ -438,9 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
     teleop.set_defaults(func=_cmd_teleop)
 
     train = sub.add_parser("train", help="train NIRL on demonstrations (resumable)")
-    train.add_argument("--task", default="navigate", help="task name under tasks/ or a .toml path")
-    train.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                       help="override a task value (repeatable)")  # fmt: skip
+    _add_task_arguments(train)
     train.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
     train.add_argument("--out", required=True, help="run directory")
     train.add_argument("--variant", choices=["default", "paper"], default="default")
@@ -466,9 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)"
     )
     evaluate.add_argument("--train-seed", type=int, default=0, help="with --policy bc: its training seed")
-    evaluate.add_argument("--task", default=None, help="task (default: the run's own)")
-    evaluate.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                          help="override a task value (repeatable)")  # fmt: skip
+    _add_task_arguments(evaluate, default=None)
     evaluate.add_argument("--tests", type=_positive_int, default=100)
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
     evaluate.add_argument("--which", choices=["selected", "last"], default="selected")
