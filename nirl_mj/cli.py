@@ -211,9 +211,16 @@ def _cmd_teleop(args: argparse.Namespace) -> int:
 def _cmd_train(args: argparse.Namespace) -> int:
     from nirl_mj.learn.nirl import NirlConfig
     from nirl_mj.learn.train import read_run, train
-    from nirl_mj.spec import apply_overrides, from_dict, load_task
+    from nirl_mj.spec import SpecError, apply_overrides, from_dict, load_task
 
     if args.resume:
+        changed = [flag for flag, given in (("--config", args.config), ("--set", args.set),
+                                            ("--episodes", args.episodes)) if given]  # fmt: skip
+        if changed:
+            raise SpecError(
+                f"--resume continues with the run's saved settings; {', '.join(changed)} cannot change them "
+                "(train a new run with another --out instead)"
+            )
         saved = read_run(args.out)  # continue with exactly the saved task and configuration
         spec = from_dict(saved["task"], f"{args.out}/run.json")
         config = NirlConfig(**saved["config"])

@@ -53,3 +53,8 @@ def test_train_then_eval_from_the_command_line(tmp_path, capsys):
     assert len(json.loads((run / "eval.json").read_text())) == 1
     assert main(["eval", "--run", str(tmp_path), "--quiet"]) == 2
     assert "not a nirl-mj run directory" in capsys.readouterr().err
+
+
+def test_resume_refuses_changed_settings(tmp_path, capsys):
+    assert main(["train", "--out", str(tmp_path), "--resume", "--config", "eta=3"]) == 2
+    assert "--resume continues with the run's saved settings" in capsys.readouterr().err
