@@ -85,7 +85,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     bar = tqdm(unit="episode", file=sys.stderr, disable=args.quiet, desc="NIRL")
 
     def progress(m) -> None:
-        bar.total = bar.total or None
         bar.update()
         bar.set_postfix(margin=f"{m.margin:.3f}", acc=f"{m.demo_accuracy:.2f}", succ=f"{m.success_rate:.1f}")
 

@@ -112,10 +112,6 @@ class NavigationTask(composer.Task):
     def observables(self):
         return self._observables
 
-    @property
-    def task_observables(self):
-        return self._observables
-
     def action_spec(self, physics) -> specs.DiscreteArray:
         return specs.DiscreteArray(num_values=features.N_ACTIONS, dtype=np.int64, name="action")
 

@@ -342,11 +342,10 @@ class Nirl:
         c = self.config
         targets, self._clipped, self._spread = self._targets(t)
         x = network_inputs(t.phi, c.input_scaling)
-        if c.replay_episodes == 0:
-            costs = [network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)]
-            costs += [network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)
-                      for _ in range(c.net_epochs - 1)]  # fmt: skip
-            return float(costs[-1])
+        if c.replay_episodes == 0:  # the paper: full-batch steps on this episode's pairs
+            for _ in range(max(c.net_epochs, 1)):
+                cost = network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)
+            return float(cost)
         return network.minibatch_epochs(
             self.net, x, t.action, targets, c.net_l2, c.net_step, c.net_epochs, c.batch_size, self.rng
         )
