@@ -138,3 +138,78 @@ def minimise_mmp(
         # theta <- theta - sigma_1 dJ/dtheta (section IV-B), then back into the ball ||theta||_2 <= 1
         theta = project_to_ball(theta - sigma * grad)
     return best_theta, float(best_value)
+
+
+class MaxMarginStep:
+    """NIRL's reward step (Algorithm 1, line 5): theta by projected subgradient on eq. 13.
+
+    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig`; ``matching`` chooses
+    what the margin compares ("paper": eq. 11 expectations of whole trajectories;
+    "occupancy": per-pair discounted sums with ``future_mix`` choosing what follows
+    a deviation), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.
+    """
+
+    def __init__(self, config, demos: Sequence) -> None:
+        from nirl_mj.learn.reward import pair_features
+        from nirl_mj.trajectory import stack_pairs
+
+        self.config = config
+        self.demo_phi, self.demo_actions = stack_pairs(demos)
+        c = config
+        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in demos]
+        if c.matching == "paper":
+            mu_e = feature_expectations(fs, c.gamma)  # eq. 11
+            self.expert = np.broadcast_to(mu_e, (len(self.demo_actions), mu_e.size)).copy()
+        else:
+            self.expert = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs])
+        # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
+        own = pair_features(self.demo_phi, self.demo_actions, c.reward_features)
+        self.expert_next = (self.expert - own) / c.gamma
+
+    def learner_matching(self, trajectories: Sequence) -> np.ndarray:
+        """The learner's side of eq. 13 for every demonstrated state and action, (N, 6, D)."""
+        from nirl_mj.learn.reward import all_action_features, pair_features
+
+        c = self.config
+        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in trajectories if len(t)]
+        n, a = len(self.demo_actions), 6
+        if c.matching == "paper":
+            mu = feature_expectations(fs, c.gamma)  # eq. 11 for the learner
+            return np.broadcast_to(mu, (n, a, mu.size)).copy()
+        # Occupancy: f(s, a) now, then what follows: the learner's own mean discounted sum
+        # (future_mix = 1), the expert's continuation (0, SCIRL's heuristic), or a mixture.
+        future = (1.0 - c.future_mix) * self.expert_next
+        if c.future_mix:
+            mean_sum = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
+            future = future + c.future_mix * mean_sum
+        return all_action_features(self.demo_phi, c.reward_features) + c.gamma * future[..., None, :]
+
+    def margin_loss(self, greedy_on_demos: np.ndarray) -> np.ndarray:
+        """l(s, a) for every demonstrated state and action, (N, 6)."""
+        c = self.config
+        if c.matching == "paper":
+            # Paper: 0 if the learned policy reproduces the expert's pair, else l.
+            per_pair = np.where(greedy_on_demos == self.demo_actions, 0.0, c.margin_loss)
+            return np.repeat(per_pair[:, None], 6, axis=1)
+        loss = np.full((len(self.demo_actions), 6), c.margin_loss)
+        loss[np.arange(len(loss)), self.demo_actions.astype(int)] = 0.0
+        return loss
+
+    def update(
+        self, theta: np.ndarray, trajectories: Sequence, iteration: int, greedy_on_demos: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """The next theta and the margin t (-min J: how far the best reward still puts the
+        expert above every loss-augmented alternative; it falls to 0 as the learner matches)."""
+        c = self.config
+        lr = c.mmp_step_size / (1.0 + c.mmp_step_decay * iteration)
+        theta, j_min = minimise_mmp(
+            theta, self.expert, self.learner_matching(trajectories), self.margin_loss(greedy_on_demos),
+            c.mmp_lambda, c.mmp_steps, lr,
+        )  # fmt: skip
+        return theta, -j_min
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        pass

@@ -32,9 +32,9 @@ import dm_env
 import numpy as np
 import torch
 
-from nirl_mj.features import N_ACTIONS
-from nirl_mj.learn import mmp, network, sarsa
-from nirl_mj.learn.reward import RewardModel, all_action_features, pair_features
+from nirl_mj.learn import network, sarsa
+from nirl_mj.learn.methods import REWARD_STEPS, reward_step
+from nirl_mj.learn.reward import RewardModel, all_action_features
 from nirl_mj.predictability import balanced_accuracy
 from nirl_mj.rollout import run_episode
 from nirl_mj.trajectory import Trajectory, stack_pairs
@@ -48,6 +48,7 @@ class NirlConfig:
     """Every choice of the learner. ``paper()`` and ``default()`` give the two variants."""
 
     variant: str = "default"
+    method: str = "nirl"  # the reward step: "nirl" (max margin, eq. 11-13) or a baseline (learn/methods.py)
     episodes: int = 60  # ~2-4 min per run on one core (planar training drive)
     trajectories_per_episode: int = 10
     gamma: float = 0.65  # eq. 14
@@ -79,6 +80,14 @@ class NirlConfig:
     validate_every: int = 5
     reward_source: str = "learned"
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
+
+    def __post_init__(self) -> None:
+        if self.method not in REWARD_STEPS:
+            raise ValueError(f"unknown method {self.method!r}; accepted: {', '.join(REWARD_STEPS)}")
+        if self.reward_source not in REWARD_SOURCES:
+            raise ValueError(
+                f"unknown reward_source {self.reward_source!r}; accepted: {', '.join(REWARD_SOURCES)}"
+            )
 
     @classmethod
     def paper(cls, **changes) -> NirlConfig:
@@ -256,10 +265,7 @@ class Nirl:
         self.net = network.QNetwork(seed=seed)
         self.demo_phi, self.demo_actions = stack_pairs(demos)
         self.demo_inputs = network_inputs(self.demo_phi, config.input_scaling)
-        self._expert = self._expert_matching(demos)
-        # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
-        own = pair_features(self.demo_phi, self.demo_actions, config.reward_features)
-        self._expert_next = (self._expert - own) / config.gamma
+        self.reward_step = reward_step(config, demos) if config.reward_source == "learned" else None
         n_theta = all_action_features(self.demo_phi[:1], config.reward_features).shape[-1]
         self.theta = np.zeros(n_theta)
         self.replay: list[Transitions] = []
@@ -268,41 +274,6 @@ class Nirl:
         self.thetas: list[np.ndarray] = []
         self.scores: list[float] = []  # the selection score of each kept policy
         self.stopped = False
-
-    # -- eq. 11-13 -------------------------------------------------------------------
-
-    def _expert_matching(self, demos: list[Trajectory]) -> np.ndarray:
-        """The expert's side of eq. 13 for every demonstrated pair, (N, D)."""
-        c = self.config
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in demos]
-        if c.matching == "paper":
-            mu_e = mmp.feature_expectations(fs, c.gamma)  # eq. 11
-            return np.broadcast_to(mu_e, (len(self.demo_actions), mu_e.size)).copy()
-        return np.concatenate([mmp.discounted_suffix_sums(f, c.gamma) for f in fs])
-
-    def _learner_matching(self, trajectories: list[Trajectory]) -> np.ndarray:
-        """The learner's side of eq. 13 for every demonstrated state and action, (N, 6, D)."""
-        c = self.config
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in trajectories if len(t)]
-        if c.matching == "paper":
-            mu = mmp.feature_expectations(fs, c.gamma)  # eq. 11 for the learner
-            return np.broadcast_to(mu, (len(self.demo_actions), N_ACTIONS, mu.size)).copy()
-        # Occupancy: f(s, a) now, then what the learner's own behaviour collects on average.
-        mean_sum = np.concatenate([mmp.discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
-        future = c.future_mix * mean_sum + (1.0 - c.future_mix) * self._expert_next
-        return all_action_features(self.demo_phi, c.reward_features) + c.gamma * future[..., None, :]
-
-    def _margin_loss(self) -> np.ndarray:
-        """l(s, a) for every demonstrated state and action, (N, 6)."""
-        c = self.config
-        if c.matching == "paper":
-            # Paper: 0 if the learned policy reproduces the expert's pair, else 1.
-            greedy = network.greedy_actions(network.q_values(self.net, self.demo_inputs))
-            per_pair = np.where(greedy == self.demo_actions, 0.0, c.margin_loss)
-            return np.repeat(per_pair[:, None], N_ACTIONS, axis=1)
-        loss = np.full((len(self.demo_actions), N_ACTIONS), c.margin_loss)
-        loss[np.arange(len(loss)), self.demo_actions.astype(int)] = 0.0
-        return loss
 
     # -- eq. 14-15 -------------------------------------------------------------------
 
@@ -370,15 +341,9 @@ class Nirl:
         entropy = network.policy_entropy(network.q_values(self.net, visited), eta)
 
         margin = float("nan")
-        if c.reward_source == "learned":  # line 5
-            lr = c.mmp_step_size / (1.0 + c.mmp_step_decay * self.iteration)
-            self.theta, j_min = mmp.minimise_mmp(
-                self.theta, self._expert, self._learner_matching(trajectories), self._margin_loss(),
-                c.mmp_lambda, c.mmp_steps, lr,
-            )  # fmt: skip
-            # The margin t: how far the best reward still puts the expert above every
-            # loss-augmented alternative (-min J); it falls to 0 as the learner matches.
-            margin = -j_min
+        if self.reward_step is not None:  # line 5
+            greedy = network.greedy_actions(network.q_values(self.net, self.demo_inputs))
+            self.theta, margin = self.reward_step.update(self.theta, trajectories, self.iteration, greedy)
             if margin <= c.epsilon:  # lines 6-8
                 self.stopped = True
 
@@ -444,6 +409,8 @@ class Nirl:
         for name in network.get_weights(self.net):
             state[f"kept_{name}"] = np.array([w[name] for w in self.kept]) if self.kept else np.zeros((0,))
         state |= {f"replay_{f.name}": getattr(replay, f.name) for f in dataclasses.fields(Transitions)}
+        if self.reward_step is not None:
+            state |= {f"reward_step_{k}": v for k, v in self.reward_step.state().items()}
         return state
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
@@ -458,6 +425,10 @@ class Nirl:
         n_kept = len(self.scores)
         self.kept = [{k: np.array(state[f"kept_{k}"][i]) for k in names} for i in range(n_kept)]
         replay = Transitions(*(np.array(state[f"replay_{f.name}"]) for f in dataclasses.fields(Transitions)))
+        if self.reward_step is not None:
+            prefix = "reward_step_"
+            own = {k.removeprefix(prefix): v for k, v in state.items() if k.startswith(prefix)}
+            self.reward_step.load_state(own)
         self.replay, start = [], 0
         for size in state["replay_sizes"]:
             self.replay.append(Transitions(*(getattr(replay, f.name)[start : start + size]
