@@ -77,16 +77,23 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from nirl_mj.demos import default_workers
     from nirl_mj.pipeline import main_job
     from nirl_mj.report import results_table
     from nirl_mj.spec import apply_overrides, load_task
 
     spec = apply_overrides(load_task(args.task), args.set)
-    bar = tqdm(unit="episode", file=sys.stderr, disable=args.quiet, desc="NIRL")
+    from nirl_mj.learn.nirl import NirlConfig
 
-    def progress(m) -> None:
+    iterations = args.episodes or NirlConfig.named(args.variant).episodes
+    bar = tqdm(total=3 * iterations, unit="iteration", file=sys.stderr, disable=args.quiet,
+               desc="NIRL and 2 controls")  # fmt: skip
+
+    def progress(m: dict) -> None:
         bar.update()
-        bar.set_postfix(margin=f"{m.margin:.3f}", acc=f"{m.demo_accuracy:.2f}", succ=f"{m.success_rate:.1f}")
+        if m["margin"] == m["margin"]:  # a NIRL row (the controls learn no reward: margin NaN)
+            bar.set_postfix(margin=f"{m['margin']:.3f}", acc=f"{m['demo_accuracy']:.2f}",
+                            succ=f"{m['success_rate']:.1f}")  # fmt: skip
 
     def log(text: str) -> None:
         bar.write(text, file=sys.stderr)
@@ -94,7 +101,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         results = main_job(
             args.out, spec, seed=args.seed, variant=args.variant, demos=args.demos, expert=args.expert,
-            episodes=args.episodes, tests=args.tests, workers=args.workers, resume=args.resume, log=log,
+            episodes=args.episodes, tests=args.tests, workers=args.workers or default_workers(),
+            resume=args.resume, log=log,
             on_metrics=progress,
         )  # fmt: skip
     finally:
@@ -399,7 +407,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--episodes", type=_positive_int, default=None, help="NIRL iterations (default: the variant's)"
     )
     main.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
-    main.add_argument("--workers", type=_positive_int, default=1, help="processes for the demonstrations")
+    main.add_argument("--workers", type=_positive_int, default=None,
+                      help="processes for demonstrations, training and evaluation (default: all cores)")
     main.add_argument("--json", action="store_true", help="print success rates as JSON on the last line")
     main.add_argument("--quiet", action="store_true", help="no progress bar")
     main.set_defaults(func=_cmd_run)
@@ -477,7 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_task_arguments(evaluate, default=None)
     evaluate.add_argument("--tests", type=_positive_int, default=100)
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
-    evaluate.add_argument("--which", choices=["selected", "last"], default="selected")
+    evaluate.add_argument("--which", default="selected", metavar="selected|last|N",
+                          help="the selected policy, the last one, or the one of iteration N")
     evaluate.add_argument("--json", action="store_true", help="print the result as JSON on the last line")
     evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
     evaluate.set_defaults(func=_cmd_eval)

@@ -1,7 +1,9 @@
 """The main job: demonstrations -> NIRL -> held-out evaluation next to the references -> report.
 
 Stages write into RUN_DIR, each atomically, and ``resume=True`` skips the
-finished ones (training resumes from its checkpoint):
+finished ones (training resumes from its checkpoint). The three trainings and
+the six evaluations are independent jobs, run on ``workers`` processes; each
+seeds itself, so the numbers do not depend on ``workers``:
 
 - ``demos.npz``: the demonstrations (default: 30 by the sensor-based expert);
 - ``nirl/``: the NIRL training run (``nirl-mj train``'s layout);
@@ -17,17 +19,21 @@ finished ones (training resumes from its checkpoint):
 from __future__ import annotations
 
 import json
+import multiprocessing
+import threading
 from collections.abc import Callable
-from dataclasses import replace
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from nirl_mj import spec as specs
 from nirl_mj.atomic import write_text
 from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.evaluate import evaluate, held_out_seeds
+from nirl_mj.evaluate import domain_seeds, evaluate, held_out_seeds
 from nirl_mj.learn.bc import behaviour_cloning
 from nirl_mj.learn.nirl import NirlConfig
-from nirl_mj.learn.train import load_policy, read_run, train
+from nirl_mj.learn.train import load_policy, read_run, train, validation_seeds
 from nirl_mj.policies import always_forward, rule_policy
 from nirl_mj.report import paths_plot, read_metrics, results_table, training_plots
 from nirl_mj.trajectory import load_dataset, save_dataset
@@ -70,34 +76,24 @@ def main_job(
         "control: SARSA on progress": ("control_progress", replace(config, reward_source="progress")),
         "control: constant reward": ("control_constant", replace(config, reward_source="constant")),
     }
-    for name, (folder, cfg) in runs.items():
-        run_dir = out / folder
-        finished = (run_dir / "policy.npz").exists()
-        if not finished:
-            log(f"training {name} ({cfg.episodes} iterations)")
-            train(run_dir, task, demos_path, cfg, seed, resume=(run_dir / "checkpoint.npz").exists(),
-                  on_metrics=on_metrics if folder == "nirl" else None)  # fmt: skip
-
+    # The test arenas: test-domain seeds none of which was seen in the demonstrations,
+    # the training rollouts or the validation (the planned seeds of every run).
+    k = config.trajectories_per_episode
     seen = {t.arena_seed for t in demo_trajectories}
-    for folder, _ in runs.values():
-        record = read_run(out / folder)
-        seen |= set(record.get("validation_seeds", [])) | set(record.get("train_seeds", []))
+    seen |= set(validation_seeds(config, seed))
+    seen |= set(domain_seeds("train", seed, config.episodes * k))
     test_seeds = held_out_seeds(seed, tests, seen)
-    policies = {
-        "NIRL": load_policy(out / "nirl")[0],
-        "always forward": always_forward,
-        "rule on phi(s)": rule_policy,
-        "behaviour cloning": behaviour_cloning(demo_trajectories, seed=seed),
-        "control: SARSA on progress": load_policy(out / "control_progress")[0],
-        "control: constant reward": load_policy(out / "control_constant")[0],
-    }
-    from nirl_mj.task import make_env
-
-    env = make_env(task)
+    jobs = [
+        _Job(name, task, test_seeds, seed, out / folder, demos_path, cfg)
+        for name, (folder, cfg) in runs.items()
+    ]
+    jobs += [_Job(name, task, test_seeds, seed) for name in ("always forward", "rule on phi(s)")]
+    jobs += [_Job("behaviour cloning", task, test_seeds, seed, demos_path=demos_path)]
     results, paths = {}, {}
-    for name, policy in policies.items():
-        log(f"evaluating {name} on {tests} held-out arenas")
-        results[name], paths[name] = evaluate(env, policy, test_seeds, name)
+    for job, (metrics, trajectories) in _run_jobs(jobs, workers, log, on_metrics):
+        results[job.name], paths[job.name] = metrics, trajectories
+    order = ["NIRL", "always forward", "rule on phi(s)", "behaviour cloning", *list(runs)[1:]]
+    results, paths = {n: results[n] for n in order}, {n: paths[n] for n in order}
     write_text(
         out / "results.json", json.dumps({"task": task.name, "seed": seed, "results": results}, indent=1)
     )
@@ -106,6 +102,107 @@ def main_job(
 
     record_run(out / "run.rrd", demo_trajectories, read_metrics(out / "nirl"), paths)
     return results
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One row of the results: train (if ``config``) or build the policy, then evaluate it."""
+
+    name: str
+    task: specs.TaskSpec
+    test_seeds: list[int]
+    seed: int
+    run_dir: Path | None = None
+    demos_path: Path | None = None
+    config: NirlConfig | None = None
+
+    def policy(self) -> Callable:
+        if self.config is not None:
+            if not (self.run_dir / "policy.npz").exists():
+                train(self.run_dir, self.task, self.demos_path, self.config, self.seed,
+                      resume=(self.run_dir / "checkpoint.npz").exists())  # fmt: skip
+            return load_policy(self.run_dir)[0]
+        if self.name == "behaviour cloning":
+            return behaviour_cloning(load_dataset(self.demos_path), seed=self.seed)
+        return {"always forward": always_forward, "rule on phi(s)": rule_policy}[self.name]
+
+    def __call__(self) -> tuple[dict, list]:
+        import torch
+
+        from nirl_mj.task import make_env
+
+        torch.set_num_threads(1)
+        return evaluate(make_env(self.task), self.policy(), self.test_seeds, self.name)
+
+
+def _run_job(job: _Job) -> tuple[dict, list]:
+    return job()
+
+
+def _run_jobs(jobs: list[_Job], workers: int, log: Callable[[str], None], on_metrics: Callable | None):
+    """Yields (job, its result) as jobs finish; with ``workers`` > 1 in spawned processes.
+
+    Every job seeds itself, so the results do not depend on ``workers``. Training
+    progress reaches ``on_metrics`` (one metrics row, a dict, per finished
+    iteration of any run) from the runs' metrics.jsonl files."""
+    progress = _MetricsFollower([j.run_dir for j in jobs if j.run_dir is not None], on_metrics)
+    if workers <= 1:
+        for job in jobs:
+            log(f"{'training and evaluating' if job.config else 'evaluating'} {job.name}")
+            with progress.following():
+                yield job, job()
+        return
+    context = multiprocessing.get_context("spawn")  # no inherited MuJoCo or GL state
+    with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=context) as pool:
+        pending = {pool.submit(_run_job, job): job for job in jobs}
+        log(f"training and evaluating {len(jobs)} policies in {min(workers, len(jobs))} processes")
+        while pending:
+            done, _ = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+            progress.poll()
+            for future in done:
+                job = pending.pop(future)
+                log(f"finished {job.name}")
+                yield job, future.result()
+        progress.poll()
+
+
+class _MetricsFollower:
+    """Passes new lines of the runs' metrics.jsonl files to ``on_metrics``."""
+
+    def __init__(self, run_dirs: list[Path], on_metrics: Callable | None) -> None:
+        self.files = [d / "metrics.jsonl" for d in run_dirs]
+        self.seen = dict.fromkeys(self.files, 0)
+        self.on_metrics = on_metrics
+
+    def poll(self) -> None:
+        if self.on_metrics is None:
+            return
+        for path in self.files:
+            lines = path.read_text().splitlines() if path.exists() else []
+            for line in lines[self.seen[path] :]:
+                try:
+                    self.on_metrics(json.loads(line))
+                except json.JSONDecodeError:  # a line being written: read it next time
+                    break
+                self.seen[path] += 1
+
+    @contextmanager
+    def following(self):
+        """Polls in a thread while the caller works (the in-process path)."""
+        stop = threading.Event()
+
+        def loop() -> None:
+            while not stop.wait(0.5):
+                self.poll()
+
+        thread = threading.Thread(target=loop, daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join()
+            self.poll()
 
 
 def write_report(
@@ -118,7 +215,7 @@ def write_report(
     text = f"""# nirl-mj run: {task.name}
 
 {n_demos} demonstrations by the {expert} expert; NIRL ({variant} variant), {record["iterations"]} iterations,
-selected policy: iteration {record["selected_iteration"]} (rule: {record["config"]["selection"]}); seed
+selected policy: iteration {record["selected_iteration"]} (rule: {record["selection"]["rule"]}); seed
 {record["seed"]}. Evaluation: greedy policies on {next(iter(results.values()))["tests"]} held-out arenas of
 `{task.name}` ({task.robot.drive} drive), none of which was seen in demonstrations, training or validation.
 

@@ -186,6 +186,25 @@ def test_cost_gradient_matches_finite_differences():
         np.testing.assert_allclose(grad.numpy(), numeric, rtol=1e-6, atol=1e-9)
 
 
+def test_explicit_backpropagation_equals_autograd():
+    """The training step's hand-written backpropagation of eq. 15 against autograd (checked
+    against finite differences above), with repeated actions in the batch."""
+    from nirl_mj.learn.network import _as_arrays, _gradients
+
+    rng = np.random.default_rng(5)
+    net = QNetwork(seed=6)
+    phi = rng.uniform(0, 3, size=(9, 16))
+    actions = np.array([0, 0, 1, 5, 5, 5, 2, 3, 0])
+    targets = rng.uniform(0, 1, size=9)
+    cost = cross_entropy_cost(net, phi, actions, targets, 0.3)
+    g1, g2 = torch.autograd.grad(cost, (net.W1, net.W2))
+    weights = (net.W1.detach().numpy(), net.W2.detach().numpy())
+    value, h1, h2 = _gradients(*weights, *_as_arrays(phi, actions, targets), 0.3)
+    assert value == pytest.approx(float(cost), rel=1e-13)
+    np.testing.assert_allclose(h1, g1.numpy(), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(h2, g2.numpy(), rtol=1e-12, atol=1e-15)
+
+
 def test_gradient_step_lowers_cost():
     rng = np.random.default_rng(2)
     net = QNetwork(seed=0)
@@ -282,6 +301,31 @@ def test_minimise_mmp_one_projected_step():
     assert value == pytest.approx(-1.0, abs=1e-3) and np.linalg.norm(theta) <= 1.0 + 1e-12
 
 
+def test_block_objective_equals_the_general_one():
+    """The default variant's fast path: the same J, subgradient and iterates as eq. 13 on the
+    (N, A, D) array of f(s_n, a) + gamma mu(next_n)."""
+    from nirl_mj.learn.mmp import minimise_mmp_blocks, mmp_objective_blocks
+    from nirl_mj.learn.reward import all_action_features, state_reward_features
+
+    rng = np.random.default_rng(8)
+    phi = np.column_stack([rng.integers(1, 8, (40, 7)), rng.integers(1, 10, 40), rng.integers(0, 2, (40, 8))])
+    blocks = state_reward_features(phi, "extended")
+    expert, future = rng.random((40, 150)), rng.random((40, 150))
+    learner = all_action_features(phi, "extended") + 0.65 * future[:, None, :]
+    loss = np.full((40, 6), 0.1)
+    loss[np.arange(40), rng.integers(0, 6, 40)] = 0.0
+    theta = rng.normal(size=150) / 20
+    offset = 0.65 * future - expert
+    v1, g1 = mmp_objective(theta, expert, learner, loss, 0.01)
+    v2, g2 = mmp_objective_blocks(theta, blocks, offset, loss, 0.01)
+    assert v2 == pytest.approx(v1, rel=1e-12)
+    np.testing.assert_allclose(g2, g1, rtol=1e-10, atol=1e-13)
+    t1, j1 = minimise_mmp(theta, expert, learner, loss, 0.01, steps=20, step_size=0.5)
+    t2, j2 = minimise_mmp_blocks(theta, blocks, offset, loss, 0.01, steps=20, step_size=0.5)
+    assert j2 == pytest.approx(j1, rel=1e-10)
+    np.testing.assert_allclose(t2, t1, rtol=1e-8, atol=1e-12)
+
+
 def test_minimise_mmp_keeps_best_iterate():
     # A too-large step overshoots; theta0 is already optimal and must be returned.
     theta0 = np.array([1.0, 0.0])
@@ -312,3 +356,16 @@ def test_sarsa_targets_eq14():
     default, share0 = sarsa_targets(q_sa[:3], rewards[:3], q_next[:3], terminal[:3], alpha, gamma)
     np.testing.assert_allclose(default, [0.492, 0.26, 0.26], rtol=1e-14)
     assert share0 == 0.0
+
+
+@pytest.mark.parametrize("kind", ["paper", "extended"])
+def test_reward_is_theta_dot_f_eq2(kind):
+    """r_theta(s, a) = theta^T f(s, a) (eq. 2) with f of eq. 4-5 (or the extended map)."""
+    from nirl_mj.learn.reward import RewardModel, all_action_features, pair_features
+
+    rng = np.random.default_rng(9)
+    phi = np.column_stack([rng.integers(1, 8, (12, 7)), rng.integers(1, 10, 12), rng.integers(0, 2, (12, 8))])
+    actions = rng.integers(0, 6, 12)
+    model = RewardModel(rng.normal(size=all_action_features(phi[:1], kind).shape[-1]), kind)
+    np.testing.assert_allclose(model.reward(phi, actions), pair_features(phi, actions, kind) @ model.theta)
+    np.testing.assert_allclose(model.rewards_all_actions(phi), all_action_features(phi, kind) @ model.theta)

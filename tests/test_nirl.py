@@ -102,3 +102,21 @@ def test_trained_policy_and_named_reward_are_usable(tmp_path, demos):
     r_all = reward.rewards_all_actions(phi)
     assert r_all.shape == (1, N_ACTIONS)
     assert reward.reward(phi, 4) == pytest.approx(r_all[0, 4])
+
+
+def test_any_kept_iteration_and_the_second_validation_round(tmp_path, demos):
+    run = tmp_path / "run"
+    record = train(run, TINY, demos, tiny_config(episodes=4, validate_every=1, final_candidates=2), seed=0)
+    selection = record["selection"]
+    # the two best first-round policies were re-validated on as many fresh validation arenas
+    assert len(selection["candidates"]) == 2 and selection["iteration"] in map(int, selection["candidates"])
+    assert len(record["validation_seeds"]) == 2 * 2 and len(set(record["validation_seeds"])) == 4
+    phis = np.random.default_rng(0).integers(0, 8, size=(50, 16))
+    for which, iteration in (("last", 3), ("selected", selection["iteration"])):
+        a, _ = load_policy(run, which)
+        b, _ = load_policy(run, str(iteration))
+        assert [a(p) for p in phis] == [b(p) for p in phis]
+    with pytest.raises(RunError, match="no iteration 4"):
+        load_policy(run, "4")
+    with pytest.raises(RunError, match="accepted: selected, last"):
+        load_policy(run, "best")

@@ -19,6 +19,9 @@ __all__ = [
     "project_to_ball",
     "mmp_objective",
     "minimise_mmp",
+    "mmp_objective_blocks",
+    "minimise_mmp_blocks",
+    "MaxMarginStep",
 ]
 
 
@@ -108,6 +111,50 @@ def mmp_objective(
     return value, grad
 
 
+def mmp_objective_blocks(
+    theta: np.ndarray, blocks: np.ndarray, offset: np.ndarray, loss: np.ndarray, lam: float
+) -> tuple[float, np.ndarray]:
+    """:func:`mmp_objective` when the learner's side is f(s_n, a) + gamma mu(next_n), f one-hot by action.
+
+    f(s, a) puts the state's block b(s) (B values) into action a's slot of D = A * B,
+    so theta^T f(s_n, a) = b(s_n) . theta_a with theta_a = theta[a B : (a + 1) B]:
+    A dot products of length B instead of one of length D per action.
+
+    blocks: (N, B) the blocks b(s_n); offset: (N, D) gamma mu(next_n) - expert[n]
+    (the part that is the same for every action); loss: (N, A); lam: lambda_1.
+    Equal to ``mmp_objective(theta, expert, learner, loss, lam)`` with
+    ``learner[n, a] = f(s_n, a) + gamma mu(next_n)`` (a test checks it).
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    n, b = blocks.shape
+    per_action = theta.reshape(-1, b)  # (A, B)
+    scores = blocks @ per_action.T + loss  # theta^T f(s_n, a) + l(s_n, a), (N, A)
+    a_star = np.argmax(scores, axis=1)  # lowest index on ties
+    value = float(np.mean(scores[np.arange(n), a_star] + offset @ theta) + 0.5 * lam * (theta @ theta))
+    # subgradient: (1/N) sum_n f(s_n, a*_n) + mean(offset) + lambda_1 theta
+    chosen = np.zeros((n, per_action.shape[0]))
+    chosen[np.arange(n), a_star] = 1.0
+    grad = (chosen.T @ blocks).reshape(-1) / n + offset.mean(axis=0) + lam * theta
+    return value, grad
+
+
+def _projected_subgradient(
+    objective, theta0: np.ndarray, steps: int, step_size: float, decay: float
+) -> tuple[np.ndarray, float]:
+    theta = project_to_ball(theta0)
+    best_theta, best_value = theta.copy(), np.inf
+    for k in range(int(steps) + 1):
+        value, grad = objective(theta)
+        if value < best_value:
+            best_theta, best_value = theta.copy(), value
+        if k == steps:
+            break
+        sigma = step_size / (1.0 + decay * k)
+        # theta <- theta - sigma_1 dJ/dtheta (section IV-B), then back into the ball ||theta||_2 <= 1
+        theta = project_to_ball(theta - sigma * grad)
+    return best_theta, float(best_value)
+
+
 def minimise_mmp(
     theta0: np.ndarray,
     expert: np.ndarray,
@@ -126,18 +173,32 @@ def minimise_mmp(
     Returns the iterate with the lowest J seen, theta0's projection and the final
     iterate included (earliest on ties), and that J: the margin t^(i).
     """
-    theta = project_to_ball(theta0)
-    best_theta, best_value = theta.copy(), np.inf
-    for k in range(int(steps) + 1):
-        value, grad = mmp_objective(theta, expert, learner, loss, lam)
-        if value < best_value:
-            best_theta, best_value = theta.copy(), value
-        if k == steps:
-            break
-        sigma = step_size / (1.0 + decay * k)
-        # theta <- theta - sigma_1 dJ/dtheta (section IV-B), then back into the ball ||theta||_2 <= 1
-        theta = project_to_ball(theta - sigma * grad)
-    return best_theta, float(best_value)
+    return _projected_subgradient(
+        lambda theta: mmp_objective(theta, expert, learner, loss, lam), theta0, steps, step_size, decay
+    )
+
+
+def minimise_mmp_blocks(
+    theta0: np.ndarray,
+    blocks: np.ndarray,
+    offset: np.ndarray,
+    loss: np.ndarray,
+    lam: float,
+    steps: int,
+    step_size: float,
+    decay: float = 0.0,
+) -> tuple[np.ndarray, float]:
+    """:func:`minimise_mmp` with the objective of :func:`mmp_objective_blocks` (same iterates)."""
+    return _projected_subgradient(
+        lambda theta: mmp_objective_blocks(theta, blocks, offset, loss, lam), theta0, steps, step_size, decay
+    )
+
+
+def _pair_features_of(trajectories: Sequence, kind: str) -> list[np.ndarray]:
+    """f(s_t, a_t) of each non-empty trajectory, (L_i, D) each."""
+    from nirl_mj.learn.reward import pair_features
+
+    return [pair_features(t.features[:-1], t.actions, kind) for t in trajectories if len(t)]
 
 
 class MaxMarginStep:
@@ -150,7 +211,7 @@ class MaxMarginStep:
     """
 
     def __init__(self, config, demos: Sequence) -> None:
-        from nirl_mj.learn.reward import pair_features
+        from nirl_mj.learn.reward import pair_features, state_reward_features
         from nirl_mj.trajectory import stack_pairs
 
         self.config = config
@@ -165,23 +226,31 @@ class MaxMarginStep:
         # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
         own = pair_features(self.demo_phi, self.demo_actions, c.reward_features)
         self.expert_next = (self.expert - own) / c.gamma
+        self.blocks = state_reward_features(self.demo_phi, c.reward_features)  # (N, B)
+
+    def learner_future(self, trajectories: Sequence) -> np.ndarray:
+        """What follows each demonstrated pair on the learner's side, mu(next), (N, D):
+        the learner's own mean discounted sum (``future_mix`` = 1), the expert's
+        continuation (0, SCIRL's heuristic), or a mixture."""
+        c = self.config
+        future = (1.0 - c.future_mix) * self.expert_next
+        if c.future_mix:
+            fs = _pair_features_of(trajectories, c.reward_features)
+            mean_sum = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
+            future = future + c.future_mix * mean_sum
+        return future
 
     def learner_matching(self, trajectories: Sequence) -> np.ndarray:
         """The learner's side of eq. 13 for every demonstrated state and action, (N, 6, D)."""
-        from nirl_mj.learn.reward import all_action_features, pair_features
+        from nirl_mj.learn.reward import all_action_features
 
         c = self.config
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in trajectories if len(t)]
-        n, a = len(self.demo_actions), 6
         if c.matching == "paper":
+            fs = _pair_features_of(trajectories, c.reward_features)
             mu = feature_expectations(fs, c.gamma)  # eq. 11 for the learner
-            return np.broadcast_to(mu, (n, a, mu.size)).copy()
-        # Occupancy: f(s, a) now, then what follows: the learner's own mean discounted sum
-        # (future_mix = 1), the expert's continuation (0, SCIRL's heuristic), or a mixture.
-        future = (1.0 - c.future_mix) * self.expert_next
-        if c.future_mix:
-            mean_sum = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
-            future = future + c.future_mix * mean_sum
+            return np.broadcast_to(mu, (len(self.demo_actions), 6, mu.size)).copy()
+        # Occupancy: f(s, a) now, then what follows (learner_future).
+        future = self.learner_future(trajectories)
         return all_action_features(self.demo_phi, c.reward_features) + c.gamma * future[..., None, :]
 
     def margin_loss(self, greedy_on_demos: np.ndarray) -> np.ndarray:
@@ -202,10 +271,15 @@ class MaxMarginStep:
         expert above every loss-augmented alternative; it falls to 0 as the learner matches)."""
         c = self.config
         lr = c.mmp_step_size / (1.0 + c.mmp_step_decay * iteration)
-        theta, j_min = minimise_mmp(
-            theta, self.expert, self.learner_matching(trajectories), self.margin_loss(greedy_on_demos),
-            c.mmp_lambda, c.mmp_steps, lr,
-        )  # fmt: skip
+        loss = self.margin_loss(greedy_on_demos)
+        if c.matching == "paper":
+            learner = self.learner_matching(trajectories)
+            theta, j_min = minimise_mmp(theta, self.expert, learner, loss, c.mmp_lambda, c.mmp_steps, lr)
+        else:  # the same objective, without building the (N, 6, D) array
+            offset = c.gamma * self.learner_future(trajectories) - self.expert
+            theta, j_min = minimise_mmp_blocks(
+                theta, self.blocks, offset, loss, c.mmp_lambda, c.mmp_steps, lr
+            )
         return theta, -j_min
 
     def state(self) -> dict[str, np.ndarray]:

@@ -78,6 +78,9 @@ class NirlConfig:
     selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
     validation_arenas: int = 20
     validate_every: int = 5
+    # validation selection: the best `final_candidates` policies are re-validated on as many
+    # new validation arenas, and the best over both sets is chosen (1: no second round)
+    final_candidates: int = 3
     reward_source: str = "learned"
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
 
@@ -126,15 +129,13 @@ class NirlConfig:
         return dataclasses.asdict(self)
 
 
+_INPUT_SCALE = np.array([7.0] * 7 + [9.0] + [1.0] * 8)
+
+
 def network_inputs(phi: np.ndarray, scaled: bool) -> np.ndarray:
     """What the network sees: phi (N, 16), or with D/7 and V/9 so every input is in [0, 1]."""
     x = np.asarray(phi, dtype=np.float64)
-    if not scaled:
-        return x
-    x = x.copy()
-    x[..., 0:7] /= 7.0
-    x[..., 7] /= 9.0
-    return x
+    return x / _INPUT_SCALE if scaled else x
 
 
 class NetworkAgent:
@@ -147,10 +148,12 @@ class NetworkAgent:
         self.kind = "nirl"
 
     def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
-        pass
+        # The network does not change during an episode: read its weights once.
+        self._weights = (self.net.W1.detach().numpy(), self.net.W2.detach().numpy())
 
     def act(self, timestep: dm_env.TimeStep) -> int:
-        q = network.q_values(self.net, network_inputs(timestep.observation["features"][None], self.scaled))[0]
+        x = network_inputs(timestep.observation["features"][None], self.scaled)
+        q = network.q_values(self.net, x, self._weights)[0]
         if self.eta is None:
             return int(network.greedy_actions(q[None])[0])
         return network.sample_action(q, self.eta, self.rng)

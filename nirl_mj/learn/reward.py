@@ -85,12 +85,15 @@ class RewardModel:
     def reward(self, phi: np.ndarray, action: int | np.ndarray) -> np.ndarray:
         """r_theta(s, a) for phi (..., 16) and actions (...) -> (...)."""
         phi = np.atleast_2d(phi)
-        actions = np.broadcast_to(np.asarray(action), phi.shape[:-1]).ravel()
-        return pair_features(phi.reshape(-1, phi.shape[-1]), actions, self.kind) @ self.theta
+        actions = np.broadcast_to(np.asarray(action), phi.shape[:-1]).ravel().astype(int)
+        # theta^T f(s, a) = b(s) . theta_a: f is b(s) in action a's block (eq. 4-5)
+        blocks = state_reward_features(phi.reshape(-1, phi.shape[-1]), self.kind)
+        per_action = self.theta.reshape(N_ACTIONS, -1)
+        return np.einsum("nb,nb->n", blocks, per_action[actions])
 
     def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
         """r_theta(s, a) for every action: phi (N, 16) -> (N, 6)."""
-        return all_action_features(np.atleast_2d(phi), self.kind) @ self.theta
+        return state_reward_features(np.atleast_2d(phi), self.kind) @ self.theta.reshape(N_ACTIONS, -1).T
 
     def named(self) -> dict[str, float]:
         """theta by component name."""

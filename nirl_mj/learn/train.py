@@ -63,14 +63,30 @@ def load_checkpoint(run_dir: str | os.PathLike) -> dict[str, np.ndarray]:
 def load_policy(
     run_dir: str | os.PathLike, which: str = "selected"
 ) -> tuple[Callable[[np.ndarray], int], dict]:
-    """The trained greedy policy on phi(s) (``which``: "selected" or "last") and the run's record."""
+    """The trained greedy policy on phi(s) and the run's record.
+
+    ``which``: "selected" or "last" (from policy.npz), or an iteration number
+    (any kept policy, from the checkpoint: to study what another selection rule
+    would have picked).
+    """
     run = read_run(run_dir)
+    net = network.QNetwork(seed=0)
+    if str(which).isdigit():
+        state, i = load_checkpoint(run_dir), int(which)
+        kept = len(state["scores"])
+        if i >= kept:
+            raise RunError(
+                f"{run_dir} kept {kept} policies (iterations 0-{kept - 1}); there is no iteration {i}"
+            )
+        network.set_weights(net, {k: state[f"kept_{k}"][i] for k in ("W1", "W2")})
+        return greedy_policy(net, run["config"]["input_scaling"]), run
+    if which not in ("selected", "last"):
+        raise RunError(f"unknown policy {which!r}; accepted: selected, last or an iteration number")
     path = Path(run_dir) / POLICY_FILE
     if not path.is_file():
         raise RunError(
             f"{run_dir} has no {POLICY_FILE}: its training has not finished (resume it with --resume)"
         )
-    net = network.QNetwork(seed=0)
     with np.load(path, allow_pickle=False) as data:
         network.set_weights(
             net, {k.split("/", 1)[1]: data[k] for k in data.files if k.startswith(which + "/")}
@@ -98,7 +114,7 @@ def train(
         "seed": seed,
         "demos": str(demos_path),
         "demo_seeds": [t.arena_seed for t in demos],
-        "validation_seeds": domain_seeds("validation", seed, config.validation_arenas),
+        "validation_seeds": validation_seeds(config, seed),
     }
     if resume:
         saved = read_run(run_dir)
@@ -122,7 +138,7 @@ def train(
         write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
         (run_dir / METRICS_FILE).write_text("")
     env = make_env(specs.replace(task, robot={"drive": config.train_drive}))
-    validation_seeds = record["validation_seeds"]
+    first_round = record["validation_seeds"][: config.validation_arenas]
 
     def validate(net) -> float | None:
         if config.selection != "validation" or learner.iteration % config.validate_every:
@@ -130,7 +146,7 @@ def train(
         from nirl_mj.evaluate import evaluate
 
         policy = greedy_policy(net, config.input_scaling)
-        return evaluate(env, policy, validation_seeds)[0]["success_rate"]
+        return evaluate(env, policy, first_round)[0]["success_rate"]
 
     k = config.trajectories_per_episode
     while learner.iteration < config.episodes and not learner.stopped:
@@ -141,12 +157,50 @@ def train(
         write_npz(run_dir / CHECKPOINT_FILE, learner.state())
         if on_metrics:
             on_metrics(metrics)
-    return finish(run_dir, learner, record)
+    selection = select(learner, env, record["validation_seeds"][config.validation_arenas :])
+    return finish(run_dir, learner, {**record, "selection": selection})
+
+
+def validation_seeds(config: NirlConfig, seed: int) -> list[int]:
+    """Every validation arena a run may use: the first round's, then the second round's."""
+    rounds = 2 if config.selection == "validation" and config.final_candidates > 1 else 1
+    return domain_seeds("validation", seed, rounds * config.validation_arenas)
+
+
+def select(learner: Nirl, env, second_round: list[int]) -> dict:
+    """The kept policy to report, by the configured rule, with how it was chosen.
+
+    "validation": the ``final_candidates`` best first-round policies are evaluated
+    on the second round's arenas too, and the best over both rounds wins (earliest
+    on ties): picking the maximum of many noisy 20-arena estimates favours lucky
+    ones, a fresh estimate of the few best corrects that.
+    """
+    from nirl_mj.evaluate import evaluate
+
+    c = learner.config
+    first = learner.selected
+    if not second_round or not learner.kept:
+        return {"rule": c.selection, "iteration": first}
+    order = sorted(range(len(learner.scores)), key=lambda i: (-learner.scores[i], i))
+    candidates = sorted(order[: c.final_candidates])
+    combined = {}
+    for i in candidates:
+        net = network.QNetwork(seed=0)
+        network.set_weights(net, learner.kept[i])
+        second = evaluate(env, greedy_policy(net, c.input_scaling), second_round)[0]["success_rate"]
+        combined[i] = (learner.scores[i] + second) / 2
+    chosen = max(candidates, key=lambda i: (combined[i], -i))
+    return {
+        "rule": f"{c.selection}, best {c.final_candidates} re-validated",
+        "iteration": chosen,
+        "first_round_best": first,
+        "candidates": {str(i): {"first": learner.scores[i], "both": combined[i]} for i in candidates},
+    }
 
 
 def finish(run_dir: Path, learner: Nirl, record: dict) -> dict:
     """Writes the selected and last policy and the selected reward."""
-    chosen = learner.selected
+    chosen = record["selection"]["iteration"]
     arrays = {f"selected/{k}": v for k, v in learner.kept[chosen].items()}
     arrays |= {f"last/{k}": v for k, v in learner.kept[-1].items()}
     write_npz(run_dir / POLICY_FILE, arrays)
