@@ -83,6 +83,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from nirl_mj.spec import apply_overrides, load_task
 
     spec = apply_overrides(load_task(args.task), args.set)
+    if args.rerun:
+        _check_output(Path(args.rerun), args.overwrite)
     from nirl_mj.learn.nirl import NirlConfig
 
     iterations = args.episodes or NirlConfig.named(args.variant).episodes
@@ -109,6 +111,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         bar.close()
     print(results_table(results))
     print(f"report: {Path(args.out) / 'report.md'}")
+    if args.rerun:
+        from nirl_mj.record import copy_recording
+
+        print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun)}")
     if args.json:
         print(json.dumps({name: r["success_rate"] for name, r in results.items()}))
     return 0
@@ -123,6 +129,16 @@ def _check_output(path: Path, overwrite: bool) -> None:
         raise FileNotFoundError(f"cannot write {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
         raise PermissionError(f"cannot write {path}: directory {parent} is not writable")
+
+
+def _open_recording(path: str | None, overwrite: bool):
+    """A :class:`nirl_mj.record.Recording` at ``path`` (checked first), or None without one."""
+    if not path:
+        return None
+    _check_output(Path(path), overwrite)
+    from nirl_mj.record import Recording
+
+    return Recording(path)
 
 
 def _cmd_demos(args: argparse.Namespace) -> int:
@@ -240,6 +256,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = NirlConfig.named(args.variant, **changes, **_config_overrides(args.config))
         demos, seed = args.demos, args.seed
     done = _iterations_done(args.out) if args.resume else 0
+    recording = _open_recording(args.rerun, args.overwrite)
     with tqdm(
         total=config.episodes, initial=done, unit="episode", file=sys.stderr, disable=args.quiet
     ) as bar:
@@ -249,8 +266,19 @@ def _cmd_train(args: argparse.Namespace) -> int:
             bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
                             succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
                             else f"{m.validation_success:.2f}")  # fmt: skip
+            if recording:
+                recording.training([vars(m)])  # per iteration, from the metrics already computed
 
-        record = train(args.out, spec, demos, config, seed, args.resume, progress)
+        try:
+            record = train(args.out, spec, demos, config, seed, args.resume, progress)
+        except BaseException:
+            if recording:
+                recording.abort()
+            raise
+    if recording:
+        from nirl_mj.record import finish_training
+
+        print(f"wrote {finish_training(recording, args.out, demos)}")
     print(
         f"trained {record['iterations']} iterations ({config.variant} variant); selected policy: iteration "
         f"{record['selected_iteration']}; run in {args.out}"
@@ -302,10 +330,12 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         policy, spec, name = _reference_policy(args, demos), load_task(args.task or "navigate"), args.policy
         seen = {t.arena_seed for t in demos}
     spec = apply_overrides(spec, args.set)
+    if args.rerun:
+        _check_output(Path(args.rerun), args.overwrite)
     seeds = held_out_seeds(args.seed, args.tests, seen)
     env = make_env(spec)
     with tqdm(total=args.tests, unit="test", file=sys.stderr, disable=args.quiet) as bar:
-        metrics, _ = evaluate(env, policy, seeds, name, on_episode=lambda t: bar.update())
+        metrics, trajectories = evaluate(env, policy, seeds, name, on_episode=lambda t: bar.update())
     result = {
         **metrics,
         "task": spec.name,
@@ -320,6 +350,13 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         f"{metrics['collision_rate']:.0%}  timeout {metrics['timeout_rate']:.0%}  path "
         f"{metrics['mean_path_length']:.1f} m  SPL {metrics['spl']:.2f}"
     )
+    if args.rerun:
+        from nirl_mj.record import record_evaluation
+
+        reward = Path(args.run) / "reward.json" if args.run else None
+        reward = reward if reward and reward.is_file() else None
+        record_evaluation(args.rerun, name, trajectories, reward, (spec, seeds[0]) if reward else None)
+        print(f"wrote {args.rerun}")
     if args.json:
         print(json.dumps(result))
     return 0
@@ -345,6 +382,66 @@ def _merge_json(path: Path, key: str, value: dict) -> None:
     data = json.loads(path.read_text()) if path.exists() else {}
     data[key] = value
     write_text(path, json.dumps(data, indent=1))
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from nirl_mj import render
+
+    outputs = [Path(p) for p in (args.out, args.montage, args.paths) if p]
+    if not outputs:
+        raise render.RenderError(
+            "nothing to write: give --out FILE.mp4, --montage FILE.png and/or --paths FILE.png"
+        )
+    for path in outputs:
+        _check_output(path, args.overwrite)
+    render.check_frame(args.camera, args.width, args.height)
+    render.check_backend()
+    from nirl_mj.task import make_env
+
+    policy, spec, seeds, what = _render_subject(args)
+    env = make_env(spec)
+    print(f"{what} on {spec.name}, arena seed {seeds[0]}, camera {args.camera}", file=sys.stderr)
+    if args.out:
+        video = render.record_video(env, policy, seeds[0], args.out, args.camera, args.width, args.height,
+                                    args.fps, args.overlay, args.overwrite)  # fmt: skip
+        t = video.trajectory
+        print(f"wrote {video.path}: {video.frames} frames, {video.duration:.1f} s simulated at "
+              f"{args.fps:g} fps, {t.outcome} after {len(t)} decisions")  # fmt: skip
+    if args.montage:
+        out = render.snapshot_strip(env, policy, seeds[0], args.montage, args.snapshots, args.camera,
+                                    args.width, args.height, overwrite=args.overwrite)  # fmt: skip
+        print(f"wrote {out}")
+    if args.paths:
+        out = render.paths_montage(env, policy, seeds, args.paths, args.camera, args.width, args.height,
+                                   overwrite=args.overwrite)  # fmt: skip
+        print(f"wrote {out}")
+    return 0
+
+
+def _render_subject(args: argparse.Namespace) -> tuple:
+    """(policy, task spec, arena seeds, description) for ``render``: a run's greedy policy on its
+    held-out test arenas (as ``eval`` numbers them), or a reference policy on test-domain arenas."""
+    from nirl_mj.evaluate import domain_seeds, held_out_seeds
+    from nirl_mj.spec import apply_overrides, from_dict, load_task
+
+    if args.episode < 0:
+        from nirl_mj.render import RenderError
+
+        raise RenderError(f"--episode {args.episode}: expected a test arena index >= 0")
+    count = args.episode + max(1, args.arenas if args.paths else 1)
+    if args.run:
+        from nirl_mj.learn.train import load_policy
+
+        policy, run = load_policy(args.run, args.which)
+        spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
+        seen = {*run.get("demo_seeds", []), *run.get("validation_seeds", []), *run.get("train_seeds", [])}
+        seeds, what = held_out_seeds(args.seed, count, seen), f"{args.run} ({args.which} policy)"
+    else:
+        from nirl_mj.policies import POLICIES
+
+        policy, spec = POLICIES[args.policy], load_task(args.task or "navigate")
+        seeds, what = domain_seeds("test", args.seed, count), f"policy {args.policy}"
+    return policy, apply_overrides(spec, args.set), seeds[args.episode :], what
 
 
 def _cmd_task(args: argparse.Namespace) -> int:
@@ -373,6 +470,15 @@ def _probability(text: str) -> float:
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text}")
     return value
+
+
+def _add_rerun_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """--rerun FILE.rrd, and --overwrite for it where the command has none yet."""
+    parser.add_argument(
+        "--rerun", default=None, metavar="FILE.rrd", help=f"also write a Rerun recording: {what}"
+    )
+    if "--overwrite" not in parser._option_string_actions:  # argparse refuses a second --overwrite
+        parser.add_argument("--overwrite", action="store_true", help="replace an existing --rerun file")
 
 
 def _add_task_arguments(parser: argparse.ArgumentParser, default: str | None = "navigate") -> None:
@@ -407,10 +513,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--episodes", type=_positive_int, default=None, help="NIRL iterations (default: the variant's)"
     )
     main.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
-    main.add_argument("--workers", type=_positive_int, default=None,
-                      help="processes for demonstrations, training and evaluation (default: all cores)")
+    main.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="processes for demonstrations, training and evaluation (default: all cores)",
+    )
     main.add_argument("--json", action="store_true", help="print success rates as JSON on the last line")
     main.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_rerun_argument(main, "a copy of RUN_DIR/run.rrd (always written)")
     main.set_defaults(func=_cmd_run)
 
     run = sub.add_parser(
@@ -471,6 +582,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                        help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
     train.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_rerun_argument(train, "training scalars per iteration, demonstrations with r_theta, reward map")
     train.set_defaults(func=_cmd_train)
 
     evaluate = sub.add_parser("eval", help="evaluate a trained run's greedy policy on held-out arenas")
@@ -486,11 +598,43 @@ def build_parser() -> argparse.ArgumentParser:
     _add_task_arguments(evaluate, default=None)
     evaluate.add_argument("--tests", type=_positive_int, default=100)
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
-    evaluate.add_argument("--which", default="selected", metavar="selected|last|N",
-                          help="the selected policy, the last one, or the one of iteration N")
+    evaluate.add_argument(
+        "--which",
+        default="selected",
+        metavar="selected|last|N",
+        help="the selected policy, the last one, or the one of iteration N",
+    )
     evaluate.add_argument("--json", action="store_true", help="print the result as JSON on the last line")
     evaluate.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_rerun_argument(evaluate, "every test episode (with r_theta and the reward map for --run)")
     evaluate.set_defaults(func=_cmd_eval)
+
+    rendering = sub.add_parser(
+        "render", help="render an episode of a run's (or a reference) policy offscreen: MP4, PNG montages"
+    )
+    who = rendering.add_mutually_exclusive_group(required=True)
+    who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
+    who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
+    _add_task_arguments(rendering, default=None)
+    rendering.add_argument("--seed", type=int, default=0, help="seed of the test arenas (as for eval)")
+    rendering.add_argument("--episode", type=int, default=0, help="which test arena (0 = eval's first)")
+    rendering.add_argument("--which", default="selected", help="selected, last or an iteration number")
+    rendering.add_argument("--out", help="MP4 video of the episode")
+    rendering.add_argument("--montage", metavar="FILE.png", help="strip of snapshots of the episode (Fig. 8)")
+    rendering.add_argument("--snapshots", type=_positive_int, default=5, help="frames in --montage")
+    rendering.add_argument("--paths", metavar="FILE.png", help="whole paths in several test arenas (Fig. 5)")
+    rendering.add_argument("--arenas", type=_positive_int, default=4, help="arenas in --paths")
+    rendering.add_argument(
+        "--camera", default="top", help="top (whole arena, default), follow (12 m above the robot) or chase"
+    )
+    rendering.add_argument("--width", type=_positive_int, default=640, help="pixels (even, <= 1280)")
+    rendering.add_argument("--height", type=_positive_int, default=480, help="pixels (even, <= 960)")
+    rendering.add_argument("--fps", type=float, default=10.0,
+                           help="video frames per second of simulated time; plays at real time")  # fmt: skip
+    rendering.add_argument("--overlay", action=argparse.BooleanOptionalAction, default=True,
+                           help="draw time, step, action and danger levels onto the video")  # fmt: skip
+    rendering.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    rendering.set_defaults(func=_cmd_render)
 
     inspect = sub.add_parser("inspect", help="validate a dataset file and print its summary")
     inspect.add_argument("path")

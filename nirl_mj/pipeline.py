@@ -100,7 +100,8 @@ def main_job(
     write_report(out, task, variant, results, paths, len(demo_trajectories), expert)
     from nirl_mj.record import record_run
 
-    record_run(out / "run.rrd", demo_trajectories, read_metrics(out / "nirl"), paths)
+    record_run(out / "run.rrd", demo_trajectories, read_metrics(out / "nirl"), paths,
+               reward=out / "nirl" / "reward.json", map_arena=(task, test_seeds[0]))  # fmt: skip
     return results
 
 

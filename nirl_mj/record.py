@@ -1,14 +1,28 @@
-"""Rerun recordings of what the robot did (rerun-sdk 0.41 API).
+"""Rerun recordings of what the robot saw and did (rerun-sdk 0.41 API).
 
 A trajectory stores its arena's seed and task spec, not the arena itself; the
-arena is regenerated exactly as the environment drew it
-(:func:`layout_of`). Entity paths, for demonstration i:
+arena is regenerated exactly as the environment drew it (:func:`layout_of`),
+and moving obstacles are advanced along their straight, bouncing paths to each
+decision's time. Sensor rays are drawn from the stored clearances (a ray per
+sensor, clearance + robot radius long, coloured by its danger level), so no
+physics runs while recording.
 
-- ``demos/{i:03d}/arena/obstacles`` boxes and ``.../cylinders`` (static), the
-  border walls, start and target;
-- ``demos/{i:03d}/path`` the robot's path as a line strip (static);
-- ``demos/{i:03d}/robot`` the robot's position on the ``step`` timeline, and
-  ``demos/{i:03d}/action`` the action taken at that step.
+Entity paths of an episode under ``P`` (``demos/007``, ``eval/nirl/003``;
+docs/INSPECT.md lists everything, with the blueprint):
+
+- static: ``P/arena/{obstacles,cylinders,border,start_target}``, ``P/path``
+  (line strip coloured by outcome), ``P/robot/footprint`` and
+  ``P/robot/heading`` (in the robot's frame), ``P/reward_path`` (the path's
+  segments coloured by r_theta, with a learned reward);
+- on the ``step`` (decision index) and ``time`` (simulated seconds)
+  timelines: ``P/robot`` (pose, a 3-D transform), ``P/robot/rays`` (nine
+  rays), ``P/action`` (text), ``P/features`` (the 16 values of phi(s)),
+  ``P/reward`` (r_theta(s_t, a_t), with a learned reward), and
+  ``P/arena/moving`` (moving obstacles).
+
+Training scalars are under ``training/<name>`` on the ``episode`` timeline
+(one row per NIRL iteration); the recovered-reward map under ``reward_map/``.
+:class:`Recording` writes a file atomically (``PATH.tmp`` while open).
 """
 
 from __future__ import annotations
@@ -17,24 +31,43 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.features import ACTION_NAMES
-from nirl_mj.layout import Layout, generate_layout
+from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
+from nirl_mj.layout import Layout, advance, generate_layout
 from nirl_mj.spec import from_dict
 from nirl_mj.trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from nirl_mj.learn.reward import RewardModel
+    from nirl_mj.reward_map import PhiGrid
+    from nirl_mj.spec import TaskSpec
+
 _OBSTACLE = (150, 150, 160)
 _WALL = (90, 90, 100)
+_MOVING = (255, 140, 26)
+_ROBOT = (230, 230, 230)
 _PATH = {
     "target": (40, 170, 60),
     "collision": (220, 50, 40),
     "timeout": (230, 160, 30),
     "physics_error": (150, 0, 150),
 }
+DANGER_COLOURS = np.array(
+    [(110, 190, 110), (255, 235, 120), (255, 210, 90), (255, 180, 70),
+     (250, 145, 55), (240, 105, 45), (225, 65, 40), (200, 20, 30)], dtype=np.uint8,
+)  # fmt: skip
+"""RGB of danger levels 0 (nothing in range: green) .. 7 (closest: dark red), shape (8, 3)."""
+_RAY_HEIGHT = 0.06  # m: the sensors' height on the robot
+TRAINING_KEYS = ("margin", "cost", "dw1", "dw2", "demo_accuracy", "demo_balanced_accuracy", "success_rate",
+                 "collision_rate", "timeout_rate", "validation_success", "policy_entropy", "reward_spread",
+                 "clipped_share", "eta", "theta_norm", "reward_prefers_forward")  # fmt: skip
+"""Training scalars logged under ``training/<key>`` when a metrics row has them."""
 
 
 def layout_of(trajectory: Trajectory) -> Layout:
@@ -43,13 +76,19 @@ def layout_of(trajectory: Trajectory) -> Layout:
     return generate_layout(spec.arena, np.random.RandomState(trajectory.arena_seed), robot_radius=BODY_RADIUS)
 
 
+def slug(name: str) -> str:
+    """``name`` as one entity-path part: lower case, runs of other characters as ``_``."""
+    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+
+
 def _yaw_quaternions(yaw: np.ndarray) -> np.ndarray:
     """(N,) radians about +z -> (N, 4) quaternions in Rerun's xyzw order."""
     return np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
 
 
 def log_layout(rec: rr.RecordingStream, path: str, layout: Layout, height: float = 1.0) -> None:
-    """Logs an arena as static 3-D geometry under ``path`` (metres)."""
+    """Logs an arena as static 3-D geometry under ``path`` (metres); moving obstacles are
+    logged over time by :func:`log_trajectory`."""
     boxes = [o for o in layout.obstacles if o.shape == "box"]
     cylinders = [o for o in layout.obstacles if o.shape == "cylinder"]
     if boxes:
@@ -95,39 +134,391 @@ def log_layout(rec: rr.RecordingStream, path: str, layout: Layout, height: float
     )
 
 
-def log_trajectory(rec: rr.RecordingStream, path: str, trajectory: Trajectory) -> None:
-    """Logs the path (static) and, per decision on the ``step`` timeline, the robot and its action."""
-    xy = trajectory.poses[:, :2]
-    points = np.column_stack([xy, np.full(len(xy), 0.1)])
+def moving_positions(layout: Layout, times: np.ndarray) -> np.ndarray:
+    """Centres (metres) of the layout's moving obstacles at ``times`` (seconds since the episode's
+    start, non-decreasing): (len(times), M, 2). The task moves them the same way (straight lines,
+    bouncing off the border walls); it stops them once an episode's outcome is decided, so the
+    last decision of an episode that ends early shows them up to half a decision ahead."""
+    m = len(layout.moving)
+    p = np.array([(o.x, o.y) for o in layout.moving], dtype=np.float64).reshape(m, 2)
+    v = np.array([(o.vx, o.vy) for o in layout.moving], dtype=np.float64).reshape(m, 2)
+    r = np.array([o.radius for o in layout.moving], dtype=np.float64)
+    out = np.empty((len(times), m, 2))
+    now = 0.0
+    for t, when in enumerate(times):
+        if when > now:
+            p, v = advance(p, v, r, float(when - now), layout.size)
+            now = float(when)
+        out[t] = p
+    return out
+
+
+def _indexes(trajectory: Trajectory, rows: int) -> list[rr.TimeColumn]:
+    return [
+        rr.TimeColumn("step", sequence=np.arange(rows)),
+        rr.TimeColumn("time", duration=np.asarray(trajectory.times[:rows], dtype=np.float64)),
+    ]
+
+
+def _ray_strips(trajectory: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor rays in the robot's frame: strips (T+1, 9, 2, 3) metres, colours (T+1, 9, 3)."""
+    sensing = trajectory.task["sensing"]
+    ranges = np.asarray(trajectory.ranges, dtype=np.float64)
+    levels = danger_levels(ranges, sensing["range"], sensing["danger7_clearance"])
+    length = BODY_RADIUS + np.minimum(ranges, sensing["range"])
+    strips = np.zeros((*ranges.shape, 2, 3))
+    strips[..., :, 2] = _RAY_HEIGHT
+    strips[..., 1, 0] = length * np.cos(SENSOR_ANGLES)
+    strips[..., 1, 1] = length * np.sin(SENSOR_ANGLES)
+    return strips, DANGER_COLOURS[levels]
+
+
+def _colour_scale(values: np.ndarray) -> np.ndarray:
+    """Values -> (N, 3) uint8 from blue (lowest) through grey to red (highest)."""
+    values = np.asarray(values, dtype=np.float64)
+    span = np.ptp(values) if values.size else 0.0
+    u = (values - values.min()) / span if span > 0 else np.full(values.shape, 0.5)
+    low, mid, high = np.array([40, 90, 220.0]), np.array([200, 200, 200.0]), np.array([220, 40, 40.0])
+    w = u[:, None]
+    out = np.where(w < 0.5, low + (mid - low) * (2 * w), mid + (high - mid) * (2 * w - 1))
+    return out.astype(np.uint8)
+
+
+def log_trajectory(
+    rec: rr.RecordingStream,
+    path: str,
+    trajectory: Trajectory,
+    reward: RewardModel | None = None,
+    layout: Layout | None = None,
+) -> None:
+    """Logs one episode under ``path``: the path and the robot's footprint (static); per decision
+    on the ``step`` and ``time`` timelines the robot's pose, its sensor rays, the action, phi(s),
+    r_theta(s_t, a_t) when ``reward`` is given, and the moving obstacles of ``layout``.
+
+    Row counts: T + 1 (states) for the pose, rays, features and moving obstacles; T for the
+    action and the reward. Columnar (``send_columns``): a few ms per episode.
+    """
+    n = len(trajectory) + 1
+    poses = np.asarray(trajectory.poses, dtype=np.float64)
+    points = np.column_stack([poses[:, :2], np.full(n, 0.1)])
     rec.log(
         f"{path}/path",
         rr.LineStrips3D([points], colors=[_PATH[trajectory.outcome]], radii=[0.1]),
         static=True,
     )
-    for t, point in enumerate(points):
-        rec.set_time("step", sequence=t)
-        rec.log(f"{path}/robot", rr.Points3D([point], radii=[BODY_RADIUS], colors=[(230, 230, 230)]))
-        if t < len(trajectory.actions):
-            rec.log(f"{path}/action", rr.TextLog(ACTION_NAMES[trajectory.actions[t]]))
-    rec.reset_time()
+    rec.log(
+        f"{path}/robot/footprint",
+        rr.Cylinders3D(centers=[(0, 0, 0.15)], radii=[BODY_RADIUS], lengths=[0.3], colors=[_ROBOT]),
+        static=True,
+    )
+    rec.log(
+        f"{path}/robot/heading",
+        rr.Arrows3D(origins=[(0, 0, 0.3)], vectors=[(0.6, 0, 0)], colors=[(40, 90, 220)]),
+        static=True,
+    )
+    states = _indexes(trajectory, n)
+    rec.send_columns(
+        f"{path}/robot",
+        indexes=states,
+        columns=rr.Transform3D.columns(
+            translation=np.column_stack([poses[:, :2], np.zeros(n)]), quaternion=_yaw_quaternions(poses[:, 2])
+        ),
+    )
+    strips, colours = _ray_strips(trajectory)
+    k = strips.shape[1]
+    rec.send_columns(
+        f"{path}/robot/rays",
+        indexes=states,
+        columns=rr.LineStrips3D.columns(
+            strips=strips.reshape(-1, 2, 3), colors=colours.reshape(-1, 3), radii=np.full(n * k, 0.03)
+        ).partition(np.full(n, k)),
+    )
+    rec.log(f"{path}/features", rr.SeriesLines(names=list(FEATURE_NAMES)), static=True)
+    rec.send_columns(
+        f"{path}/features",
+        indexes=states,
+        columns=rr.Scalars.columns(scalars=np.asarray(trajectory.features, dtype=np.float64)),
+    )
+    if len(trajectory):
+        decisions = _indexes(trajectory, n - 1)
+        names = np.asarray(ACTION_NAMES)[trajectory.actions]
+        rec.send_columns(f"{path}/action", indexes=decisions, columns=rr.TextLog.columns(text=names.tolist()))
+        if reward is not None:
+            phi, actions = trajectory.pairs()
+            r = np.asarray(reward.reward(phi, actions), dtype=np.float64)
+            rec.send_columns(f"{path}/reward", indexes=decisions, columns=rr.Scalars.columns(scalars=r))
+            segments = np.stack([points[:-1], points[1:]], axis=1) + (0, 0, 0.05)
+            rec.log(
+                f"{path}/reward_path",
+                rr.LineStrips3D(segments, colors=_colour_scale(r), radii=[0.15]),
+                static=True,
+            )
+    if layout is not None and layout.moving:
+        _log_moving(rec, f"{path}/arena/moving", layout, trajectory, states)
 
 
-def record_demonstrations(path: str | os.PathLike, trajectories: Sequence[Trajectory]) -> Path:
-    """Writes a ``.rrd`` with every demonstration's arena, path and actions, atomically."""
-    return record_run(path, trajectories, (), {})
+def _log_moving(
+    rec: rr.RecordingStream, path: str, layout: Layout, trajectory: Trajectory, indexes: list
+) -> None:
+    n, m = len(trajectory) + 1, len(layout.moving)
+    height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
+    xy = moving_positions(layout, np.asarray(trajectory.times))
+    centres = np.concatenate([xy, np.full((n, m, 1), height / 2)], axis=2).reshape(-1, 3)
+    radii = np.tile([o.radius for o in layout.moving], n)
+    rec.send_columns(
+        path,
+        indexes=indexes,
+        columns=rr.Cylinders3D.columns(
+            centers=centres, radii=radii, lengths=np.full(n * m, height), colors=np.tile(_MOVING, (n * m, 1))
+        ).partition(np.full(n, m)),
+    )
+
+
+def log_episode(
+    rec: rr.RecordingStream, path: str, trajectory: Trajectory, reward: RewardModel | None = None
+) -> None:
+    """:func:`log_layout` of the trajectory's regenerated arena under ``path/arena`` and
+    :func:`log_trajectory` under ``path``."""
+    layout = layout_of(trajectory)
+    height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
+    log_layout(rec, f"{path}/arena", layout, height)
+    log_trajectory(rec, path, trajectory, reward, layout)
 
 
 def log_training(rec: rr.RecordingStream, metrics: Sequence[dict], prefix: str = "training") -> None:
-    """Training scalars (margin, cost, weight changes, accuracies, success) on the ``episode`` timeline."""
-    keys = ("margin", "cost", "dw1", "dw2", "demo_accuracy", "demo_balanced_accuracy", "success_rate",
-            "collision_rate", "validation_success", "policy_entropy", "reward_spread")  # fmt: skip
+    """Training scalars (margin, cost, weight changes, accuracies, success; :data:`TRAINING_KEYS`)
+    on the ``episode`` timeline, one row per metrics dict (its ``episode`` is the index)."""
     for row in metrics:
         rec.set_time("episode", sequence=int(row["episode"]))
-        for key in keys:
+        for key in TRAINING_KEYS:
             value = row.get(key)
             if value is not None and np.isfinite(value):
                 rec.log(f"{prefix}/{key}", rr.Scalars(float(value)))
     rec.reset_time()
+
+
+def log_reward_map(
+    rec: rr.RecordingStream, grid: PhiGrid, reward: RewardModel, arena: str = "", path: str = "reward_map"
+) -> np.ndarray:
+    """Logs r_theta over ``grid`` (static): ``path/<action>`` one image per action with the
+    target ahead, ``path/grid`` every target bearing x action with a colour bar, ``path/values``
+    the raw (bearings, actions, y, x) tensor and ``path/info`` what the images show. Returns the
+    values (K, 6, ny, nx)."""
+    from nirl_mj.reward_map import colourise, grid_figure, reward_map
+
+    values = reward_map(grid, reward)
+    finite = values[np.isfinite(values)]
+    low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+    for a in range(N_ACTIONS):
+        rec.log(f"{path}/{ACTION_NAMES[a]}", rr.Image(colourise(values[0, a], low, high)), static=True)
+    rec.log(
+        f"{path}/grid", rr.Image(grid_figure(grid, values, f"r_theta(s, a) {arena}".strip())), static=True
+    )
+    rec.log(
+        f"{path}/values",
+        rr.Tensor(np.nan_to_num(values, nan=low), dim_names=["bearing", "action", "y", "x"]),
+        static=True,
+    )
+    cell = float(grid.xs[1] - grid.xs[0]) if grid.xs.size > 1 else 0.0
+    bearings = ", ".join(f"{np.degrees(b):+.0f}" for b in grid.bearings)
+    rec.log(
+        f"{path}/info",
+        rr.TextDocument(
+            f"# Recovered reward r_theta(s, a)\n\nArena: {arena or 'sample arena'}. Grid: {grid.xs.size} x "
+            f"{grid.ys.size} cells of {cell:g} m (north up); dark cells (white in the grid) are where the "
+            f"robot cannot be. Per-action images: the target straight ahead (viridis, {low:.3g} .. "
+            f"{high:.3g}). Grid rows: target at {bearings} degrees from the robot's front; columns: "
+            f"{', '.join(ACTION_NAMES)}.",
+            media_type="text/markdown",
+        ),
+        static=True,
+    )
+    return values
+
+
+def default_blueprint(
+    episodes: Sequence[str], reward_map: bool = False, training: bool = False
+) -> rrb.Blueprint:
+    """The layout a recording opens with: a 3-D tab per episode in ``episodes`` (entity paths,
+    e.g. ``demos/000``) with the first episode's actions, phi(s) and r_theta next to it; the
+    training curves and the reward map in tabs on the right."""
+    first = episodes[0] if episodes else "demos/000"
+    scene = rrb.Tabs(*[rrb.Spatial3DView(origin=f"/{e}", name=e) for e in episodes] or [rrb.Spatial3DView()])
+    series = [
+        rrb.TimeSeriesView(origin=f"/{first}/features", name=f"phi(s) {first}"),
+        rrb.TimeSeriesView(origin=f"/{first}/reward", name=f"r_theta {first}"),
+    ]
+    right: list[Any] = []
+    if training:
+        right.append(
+            rrb.Tabs(
+                rrb.TimeSeriesView(origin="/training", name="margin, cost",
+                                   contents=["/training/margin", "/training/cost"]),
+                rrb.TimeSeriesView(origin="/training", name="weight changes",
+                                   contents=["/training/dw1", "/training/dw2"]),
+                rrb.TimeSeriesView(origin="/training", name="accuracy, success",
+                                   contents=["/training/demo_accuracy", "/training/demo_balanced_accuracy",
+                                             "/training/success_rate", "/training/validation_success"]),
+                rrb.TimeSeriesView(origin="/training", name="all training scalars"),
+            )
+        )  # fmt: skip
+    if reward_map:
+        right.append(
+            rrb.Tabs(
+                rrb.Spatial2DView(origin="/reward_map/grid", name="reward map"),
+                *[rrb.Spatial2DView(origin=f"/reward_map/{a}", name=f"r_theta {a}") for a in ACTION_NAMES],
+                rrb.TextDocumentView(origin="/reward_map/info", name="about the map"),
+            )
+        )
+    left = rrb.Vertical(scene, rrb.TextLogView(origin=f"/{first}/action", name=f"actions {first}"),
+                        row_shares=[4, 1])  # fmt: skip
+    columns = [left, rrb.Vertical(*series)] + ([rrb.Vertical(*right)] if right else [])
+    return rrb.Blueprint(rrb.Horizontal(*columns), collapse_panels=True)
+
+
+class Recording:
+    """A ``.rrd`` file written atomically: data goes to ``PATH.tmp`` and :meth:`close` renames it
+    to ``path`` (after sending the default blueprint); :meth:`abort`, or an exception inside a
+    ``with`` block, deletes it. ``rec`` is the open :class:`rerun.RecordingStream`."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self._tmp = self.path.with_name(self.path.name + ".tmp")
+        self.rec = rr.RecordingStream("nirl-mj")
+        self.rec.save(self._tmp)
+        self.episodes: list[str] = []  # entity paths of logged episodes, in order
+        self.logged_iterations: set[int] = set()  # ``episode`` values of logged metrics rows
+        self.has_reward_map = False
+
+    def episode(self, path: str, trajectory: Trajectory, reward: RewardModel | None = None) -> None:
+        """Logs one episode (:func:`log_episode`) under ``path``."""
+        log_episode(self.rec, path, trajectory, reward)
+        self.episodes.append(path)
+
+    def training(self, metrics: Sequence[dict]) -> None:
+        """Logs metrics rows (:func:`log_training`); cheap enough to call every iteration."""
+        log_training(self.rec, metrics)
+        self.logged_iterations.update(int(row["episode"]) for row in metrics)
+
+    def reward_map(
+        self, task: str | TaskSpec, arena_seed: int, reward: RewardModel, resolution: float = 2.0
+    ) -> None:
+        """Senses phi(s) on a grid in the arena of ``arena_seed`` and logs r_theta there."""
+        from nirl_mj.reward_map import sense_grid
+
+        grid = sense_grid(task, arena_seed, resolution)
+        log_reward_map(self.rec, grid, reward, f"arena seed {arena_seed}")
+        self.has_reward_map = True
+
+    def close(self) -> Path:
+        """Sends the blueprint, flushes and renames the file into place; returns its path."""
+        try:
+            tabs = _first_of_each_group(self.episodes)
+            self.rec.send_blueprint(
+                default_blueprint(tabs, self.has_reward_map, bool(self.logged_iterations)), make_active=True
+            )
+            self.rec.flush()
+            self.rec.disconnect()
+            os.replace(self._tmp, self.path)
+        finally:
+            self._tmp.unlink(missing_ok=True)
+        return self.path
+
+    def abort(self) -> None:
+        """Stops writing and deletes the partial file."""
+        self.rec.disconnect()
+        self._tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> Recording:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+def _first_of_each_group(episodes: Sequence[str], limit: int = 8) -> list[str]:
+    """The first episode of each group (``demos``, ``eval/<policy>``), at most ``limit``."""
+    seen, out = set(), []
+    for e in episodes:
+        group = e.rsplit("/", 1)[0]
+        if group not in seen:
+            seen.add(group)
+            out.append(e)
+    return out[:limit]
+
+
+def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str | os.PathLike) -> Path:
+    """Completes and closes the recording of a finished training run in ``run_dir``: the metrics
+    rows not logged yet (iterations before a resume), the demonstrations of the dataset ``demos``
+    with r_theta of the run's selected reward (``reward.json``), and the reward map in the first
+    demonstration's arena. Returns the recording's path."""
+    import json
+
+    from nirl_mj.learn.reward import RewardModel
+    from nirl_mj.learn.train import METRICS_FILE, REWARD_FILE, read_run
+    from nirl_mj.trajectory import load_dataset
+
+    run_dir = Path(run_dir)
+    try:
+        run = read_run(run_dir)
+        lines = (run_dir / METRICS_FILE).read_text().splitlines()
+        rows = [json.loads(line) for line in lines if line.strip()]
+        recording.training([r for r in rows if int(r["episode"]) not in recording.logged_iterations])
+        reward = RewardModel.load(run_dir / REWARD_FILE)
+        trajectories = load_dataset(demos)
+        for i, trajectory in enumerate(trajectories):
+            recording.episode(f"demos/{i:03d}", trajectory, reward)
+        recording.reward_map(
+            from_dict(run["task"], f"{run_dir}/run.json"), trajectories[0].arena_seed, reward
+        )
+    except BaseException:
+        recording.abort()
+        raise
+    return recording.close()
+
+
+def copy_recording(source: str | os.PathLike, target: str | os.PathLike) -> Path:
+    """Copies the recording ``source`` to ``target`` atomically (a temporary file, then a rename)."""
+    import shutil
+
+    target = Path(target)
+    tmp = target.with_name(target.name + ".tmp")
+    try:
+        shutil.copyfile(source, tmp)
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return target
+
+
+def _as_reward(reward: RewardModel | str | os.PathLike | None) -> RewardModel | None:
+    if reward is None or not isinstance(reward, str | os.PathLike):
+        return reward
+    from nirl_mj.learn.reward import RewardModel
+
+    return RewardModel.load(reward)
+
+
+def record_demonstrations(
+    path: str | os.PathLike, trajectories: Sequence[Trajectory], reward: RewardModel | None = None
+) -> Path:
+    """Writes a ``.rrd`` with every demonstration (``demos/<i>``), atomically."""
+    return record_run(path, trajectories, (), {}, reward=reward)
+
+
+def record_evaluation(
+    path: str | os.PathLike,
+    name: str,
+    trajectories: Sequence[Trajectory],
+    reward: RewardModel | str | os.PathLike | None = None,
+    map_arena: tuple[str | TaskSpec, int] | None = None,
+) -> Path:
+    """Writes a ``.rrd`` with every evaluation episode (``eval/<slug(name)>/<i>``), r_theta along
+    each when ``reward`` is given, and the reward map of ``map_arena`` (task, arena seed)."""
+    return record_run(path, (), (), {name: trajectories}, len(trajectories), reward, map_arena)
 
 
 def record_run(
@@ -136,26 +527,22 @@ def record_run(
     metrics: Sequence[dict],
     evaluations: dict[str, Sequence[Trajectory]],
     max_paths: int = 10,
+    reward: RewardModel | str | os.PathLike | None = None,
+    map_arena: tuple[str | TaskSpec, int] | None = None,
 ) -> Path:
-    """Writes a run's recording, atomically: the demonstrations, the training scalars, and
-    up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    rec = rr.RecordingStream("nirl-mj")
-    rec.save(tmp)
-    try:
+    """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
+    scalars, up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``),
+    r_theta along every path when ``reward`` (a RewardModel or its JSON file) is given, and with
+    it the reward map in ``map_arena`` (task, arena seed) if given."""
+    model = _as_reward(reward)
+    with Recording(path) as recording:
         for i, trajectory in enumerate(demos):
-            log_layout(rec, f"demos/{i:03d}/arena", layout_of(trajectory))
-            log_trajectory(rec, f"demos/{i:03d}", trajectory)
-        log_training(rec, metrics)
+            recording.episode(f"demos/{i:03d}", trajectory, model)
+        if metrics:
+            recording.training(metrics)
         for name, trajectories in evaluations.items():
-            slug = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")  # entity paths take no spaces
             for i, trajectory in enumerate(trajectories[:max_paths]):
-                log_layout(rec, f"eval/{slug}/{i:03d}/arena", layout_of(trajectory))
-                log_trajectory(rec, f"eval/{slug}/{i:03d}", trajectory)
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+                recording.episode(f"eval/{slug(name)}/{i:03d}", trajectory, model)
+        if model is not None and map_arena is not None:
+            recording.reward_map(map_arena[0], map_arena[1], model)
+    return Path(path)

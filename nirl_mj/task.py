@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 
 import dm_env
 import mujoco
@@ -88,6 +89,11 @@ class NavigationTask(composer.Task):
         self._danger = np.zeros(features.N_SENSORS, dtype=np.int8)
         self._progress = 0.0
         self._observables = self._make_observables()
+        # Called with ``physics`` after every command period (default 10 ms) of a
+        # decision when set, e.g. to render video frames at a fixed rate of simulated
+        # time (nirl_mj.render). Setting it makes every decision run command by
+        # command, which is the same physics step for step, only slower.
+        self.command_hook: Callable[[object], None] | None = None
 
     # -- composer wiring -------------------------------------------------------------
 
@@ -178,7 +184,8 @@ class NavigationTask(composer.Task):
         wheel_commands = self._drive.plan(
             action, control.speed, control.decision_period, control.command_period, control.max_accel
         )
-        self._run_decision(physics, wheel_commands, checked=not self._nothing_within_reach())
+        checked = self.command_hook is not None or not self._nothing_within_reach()
+        self._run_decision(physics, wheel_commands, checked=checked)
 
     def _nothing_within_reach(self) -> bool:
         """True when no contact and no arrival can happen within this decision.
@@ -225,6 +232,8 @@ class NavigationTask(composer.Task):
             n = (j - k) * self._substeps_per_command - (1 if j == n_cmd else 0)
             if n:
                 mujoco.mj_step(self._model, self._data, n)
+            if self.command_hook is not None:
+                self.command_hook(physics)
             if checked and self._check_outcome():
                 # Decided: hold the robot still for composer's final substep.
                 self._robot.set_wheel_speeds(physics, np.zeros(3))

@@ -1,0 +1,44 @@
+"""A tiny NIRL run, end to end, learns something always-forward cannot do.
+
+The arena is small and has a cylinder on the straight line from start to target
+(plus two random obstacles), so "always forward" never arrives. Measured when
+this test was written: at 20 iterations, 3 of 4 training seeds (0, 1, 3) beat
+it on their own training arenas (35-50 % against 0 %); seed 2's policy had
+stopped colliding but still timed out. The test uses seed 0.
+"""
+
+from nirl_mj import spec
+from nirl_mj.demos import ExpertConfig, collect
+from nirl_mj.evaluate import domain_seeds, evaluate
+from nirl_mj.learn.nirl import NirlConfig
+from nirl_mj.learn.train import load_policy, train
+from nirl_mj.policies import always_forward
+from nirl_mj.task import make_env
+from nirl_mj.trajectory import save_dataset
+
+BLOCKED = spec.replace(
+    spec.load_task("navigate"),
+    arena={
+        "size": [24.0, 24.0], "start": [4.0, 4.0], "target": [20.0, 20.0], "static_obstacles": 2,
+        "clear_radius": 3.0, "obstacle_size": [0.5, 1.5],
+        "obstacles": [{"shape": "cylinder", "position": [12.0, 12.0], "size": [2.0]}],
+    },
+    robot={"drive": "planar"},
+)  # fmt: skip
+
+
+def test_tiny_nirl_run_beats_always_forward_on_its_own_arenas(tmp_path):
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(BLOCKED, ExpertConfig("sensor"), episodes=8, seed=0))
+    config = NirlConfig.default(
+        episodes=20, trajectories_per_episode=10, validation_arenas=10, validate_every=2, replay_episodes=5
+    )
+    train(tmp_path / "run", BLOCKED, demos, config, seed=0)
+    policy, record = load_policy(tmp_path / "run")
+    own = record["train_seeds"][:20]
+    assert own == domain_seeds("train", 0, 20)
+    env = make_env(BLOCKED)
+    nirl = evaluate(env, policy, own)[0]
+    forward = evaluate(env, always_forward, own)[0]
+    assert forward["success_rate"] == 0.0
+    assert nirl["success_rate"] >= 0.2, nirl

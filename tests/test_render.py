@@ -1,0 +1,125 @@
+"""Offscreen videos and montages: frames, sizes, motion, honest timing, and errors that leave nothing."""
+
+import math
+import os
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from nirl_mj import spec as specs
+from nirl_mj.cli import main
+from nirl_mj.policies import rule_policy
+from nirl_mj.render import (
+    RenderError,
+    check_frame,
+    draw_overlay,
+    paths_montage,
+    record_video,
+    snapshot_strip,
+)
+from nirl_mj.rollout import PolicyAgent, run_episode
+from nirl_mj.task import make_env
+
+
+def tiny_task(moving: int = 0) -> specs.TaskSpec:
+    """A 30 m arena with 3 static obstacles, planar drive: ~30 decisions of the rule policy."""
+    return specs.replace(
+        specs.load_task("navigate"),
+        arena={"size": [30.0, 30.0], "start": [5.0, 5.0], "target": [25.0, 25.0], "static_obstacles": 3,
+               "moving_obstacles": moving},
+        robot={"drive": "planar"},
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(("camera", "overlay"), [("top", False), ("chase", True)])
+def test_video_frames_size_motion_and_timing(tmp_path, camera, overlay):
+    task, fps = tiny_task(), 4.0
+    out = tmp_path / "episode.mp4"
+    result = record_video(task, rule_policy, 7, out, camera, width=160, height=120, fps=fps, overlay=overlay)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["episode.mp4"]  # no temporary file left
+    frames = iio.imread(out)
+    assert frames.shape == (result.frames, 120, 160, 3)
+    # A frame at each multiple of 1/fps up to the end, plus the final state unless it fell on one.
+    nominal = math.floor(result.duration * fps + 1e-9) + 1
+    assert result.frames in (nominal, nominal + 1) and result.frames > 10
+    assert result.duration == pytest.approx(result.trajectory.times[-1], abs=0.5)
+    # The robot moved: from the top its marker and path, from behind it the whole view.
+    changed = np.abs(frames[0].astype(int) - frames[-1].astype(int)).max(axis=-1) > 40
+    assert changed.mean() > (0.005 if camera == "top" else 0.2)
+    # Rendering (which runs every decision command by command) does not change the episode.
+    plain = run_episode(make_env(task), PolicyAgent(rule_policy, "rule"), 7)
+    np.testing.assert_array_equal(result.trajectory.poses, plain.poses)
+    np.testing.assert_array_equal(result.trajectory.actions, plain.actions)
+
+
+def test_overlay_draws_text_and_danger_bars():
+    frame = np.full((120, 160, 3), 128, np.uint8)
+    phi = np.array([0, 1, 2, 3, 5, 6, 7, 3, 1, 0, 0, 0, 0, 0, 0, 0], np.float32)
+    drawn = draw_overlay(frame, ["t 1.00 s  step 2", "forward"], phi)
+    assert drawn.shape == frame.shape
+    changed = np.abs(drawn.astype(int) - frame).max(axis=-1) > 0
+    assert changed[:20, :40].any() and changed[-20:, :40].any()  # text top left, bars bottom left
+    assert not changed[:, 120:].any()  # the rest of the frame is untouched
+    bars = draw_overlay(frame, [], phi)
+    assert not np.array_equal(bars, draw_overlay(frame, [], np.zeros(16, np.float32)))
+
+
+def test_snapshot_strip_and_paths_montage(tmp_path):
+    env = make_env(tiny_task(moving=3))
+    strip = snapshot_strip(env, rule_policy, 1, tmp_path / "strip.png", snapshots=3, width=160, height=120)
+    image = iio.imread(strip)
+    assert image.shape == (120, 3 * 160 + 2 * 4, 3)
+    assert image.std() > 20  # not blank
+    tiles = [image[:, k * 164 : k * 164 + 160].astype(int) for k in range(3)]
+    assert np.abs(tiles[0] - tiles[2]).mean() > 1.0  # time passes between snapshots
+    montage = paths_montage(env, rule_policy, [1, 2], tmp_path / "paths.png", width=160, height=120)
+    image = iio.imread(montage)
+    assert image.shape == (120, 2 * 160 + 4, 3) and image.std() > 20
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["paths.png", "strip.png"]
+
+
+def test_bad_requests_are_refused(tmp_path, capsys):
+    task = tmp_path / "tiny.toml"
+    task.write_text('[arena]\nsize = [30.0, 30.0]\nstart = [5.0, 5.0]\ntarget = [25.0, 25.0]\n'
+                    'static_obstacles = 3\n[robot]\ndrive = "planar"\n')  # fmt: skip
+    base = ["render", "--policy", "rule", "--task", str(task)]
+    existing = tmp_path / "old.mp4"
+    existing.write_bytes(b"keep me")
+    cases = {
+        "exists; pass --overwrite": ["--out", str(existing)],
+        "unknown camera 'side'": ["--out", str(tmp_path / "a.mp4"), "--camera", "side"],
+        "does not exist": ["--out", str(tmp_path / "missing" / "a.mp4")],
+        "must be even": ["--out", str(tmp_path / "a.mp4"), "--width", "161"],
+        "nothing to write": [],
+    }
+    for message, extra in cases.items():
+        assert main([*base, *extra]) == 2, message
+        assert message in capsys.readouterr().err
+    assert existing.read_bytes() == b"keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.mp4", "tiny.toml"]
+    with pytest.raises(RenderError, match="unknown camera"):
+        check_frame("side", 160, 120)
+    with pytest.raises(RenderError, match="16..1280 x 16..960"):
+        check_frame("top", 2000, 120)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_unwritable_directory_is_refused(tmp_path, capsys):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    assert main(["render", "--policy", "rule", "--out", str(locked / "a.mp4")]) == 2
+    assert "not writable" in capsys.readouterr().err
+
+
+def test_without_an_opengl_backend_the_fix_is_named(tmp_path):
+    # MUJOCO_GL=disable: dm_control imports, every rendering context fails, as with a missing libEGL.
+    env = {**os.environ, "MUJOCO_GL": "disable", "PYOPENGL_PLATFORM": "egl"}
+    out = tmp_path / "a.mp4"
+    done = subprocess.run([sys.executable, "-m", "nirl_mj.cli", "render", "--policy", "forward", "--out",
+                           str(out)], env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in done.stderr and "MUJOCO_GL=osmesa" in done.stderr
+    assert list(tmp_path.iterdir()) == []
