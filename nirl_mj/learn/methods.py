@@ -7,17 +7,20 @@ step, chosen by ``NirlConfig.method``:
 
 - ``"nirl"``: maximum margin planning (paper eq. 11-13), :class:`nirl_mj.learn.mmp.MaxMarginStep`;
 - ``"al"``, ``"re"``, ``"scirl"``: the baselines of the paper's Table I
-  (apprenticeship learning, relative entropy IRL, SCIRL), registered below
-  when their modules exist.
+  (apprenticeship learning, relative entropy IRL, SCIRL; ``learn/al.py``,
+  ``learn/reirl.py``, ``learn/scirl.py``).
 
-A reward step has ``update(theta, trajectories, iteration, greedy_on_demos) ->
-(theta, convergence)``, ``state()`` and ``load_state(state)`` (arrays only, for
-checkpoints).
+A reward step has ``update(theta, trajectories, iteration, greedy_on_demos,
+context=None) -> (theta, convergence)``, ``state()`` and ``load_state(state)``
+(arrays only, for checkpoints). ``context`` (:class:`RolloutContext`) describes
+the policy that produced ``trajectories``; only steps that weigh the rollouts by
+their probabilities (RE-IRL's importance sampling) read it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -25,6 +28,25 @@ import numpy as np
 if TYPE_CHECKING:
     from nirl_mj.learn.nirl import NirlConfig
     from nirl_mj.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class RolloutContext:
+    """The policy that produced an iteration's rollouts: Boltzmann (eq. 8) over a network's Q.
+
+    ``eta``: the rollouts' Boltzmann parameter (1 / Q unit); ``q_values``: phi(s)
+    (N, 16) -> Q(s, .) (N, 6) of the network that drove them (a snapshot of its
+    weights, so it stays valid after the network is fitted).
+    """
+
+    eta: float
+    q_values: Callable[[np.ndarray], np.ndarray]
+
+    def action_probabilities(self, phi: np.ndarray) -> np.ndarray:
+        """pi(s, .) of the rollouts' policy (eq. 8) in the states phi (N, 16) -> (N, 6)."""
+        from nirl_mj.learn.network import boltzmann_probabilities
+
+        return boltzmann_probabilities(self.q_values(np.asarray(phi)), self.eta)
 
 
 class RewardStep(Protocol):
@@ -36,6 +58,7 @@ class RewardStep(Protocol):
         trajectories: Sequence[Trajectory],
         iteration: int,
         greedy_on_demos: np.ndarray,
+        context: RolloutContext | None = None,
     ) -> tuple[np.ndarray, float]:
         """The next theta and the method's convergence measure (NIRL: the margin t)."""
         ...
@@ -51,7 +74,30 @@ def _max_margin(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
     return MaxMarginStep(config, demos)
 
 
-REWARD_STEPS: dict[str, Callable[[NirlConfig, Sequence[Trajectory]], RewardStep]] = {"nirl": _max_margin}
+def _apprenticeship(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+    from nirl_mj.learn.al import ProjectionStep
+
+    return ProjectionStep(config, demos)
+
+
+def _relative_entropy(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+    from nirl_mj.learn.reirl import RelativeEntropyStep
+
+    return RelativeEntropyStep(config, demos)
+
+
+def _scirl(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+    from nirl_mj.learn.scirl import ScirlStep
+
+    return ScirlStep(config, demos)
+
+
+REWARD_STEPS: dict[str, Callable[[NirlConfig, Sequence[Trajectory]], RewardStep]] = {
+    "nirl": _max_margin,
+    "al": _apprenticeship,  # Abbeel & Ng 2004, projection variant (learn/al.py)
+    "re": _relative_entropy,  # Boularias, Kober & Peters 2011 (learn/reirl.py)
+    "scirl": _scirl,  # Klein, Geist, Piot & Pietquin 2012 (learn/scirl.py)
+}
 
 
 def reward_step(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:

@@ -265,10 +265,16 @@ class MaxMarginStep:
         return loss
 
     def update(
-        self, theta: np.ndarray, trajectories: Sequence, iteration: int, greedy_on_demos: np.ndarray
+        self,
+        theta: np.ndarray,
+        trajectories: Sequence,
+        iteration: int,
+        greedy_on_demos: np.ndarray,
+        context: object = None,
     ) -> tuple[np.ndarray, float]:
         """The next theta and the margin t (-min J: how far the best reward still puts the
-        expert above every loss-augmented alternative; it falls to 0 as the learner matches)."""
+        expert above every loss-augmented alternative; it falls to 0 as the learner matches).
+        ``context`` (the rollouts' policy) is not needed here."""
         c = self.config
         lr = c.mmp_step_size / (1.0 + c.mmp_step_decay * iteration)
         loss = self.margin_loss(greedy_on_demos)

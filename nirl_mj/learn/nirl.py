@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from nirl_mj.learn import network, sarsa
-from nirl_mj.learn.methods import REWARD_STEPS, reward_step
+from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext, reward_step
 from nirl_mj.learn.reward import RewardModel, all_action_features
 from nirl_mj.predictability import balanced_accuracy
 from nirl_mj.rollout import run_episode
@@ -83,6 +83,22 @@ class NirlConfig:
     final_candidates: int = 3
     reward_source: str = "learned"
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
+    # -- the baselines' reward steps (method "al", "re", "scirl"; docs/ALGORITHM.md, "Baselines") --
+    # AL, RE: what a feature expectation is. "trajectory": eq. 11, each trajectory's discounted sum
+    # from its start (the papers' reading; with gamma 0.65 it sees ~3 steps); "suffix": the mean
+    # discounted suffix sum over every visited pair (sees every state)
+    al_expectations: str = "trajectory"
+    re_expectations: str = "trajectory"
+    re_horizon: int = 16  # pairs per RE sample (and its importance ratio); gamma^16 ~ 1e-3
+    re_step: float = 0.5  # RE: gradient-ascent step on the dual g(theta)
+    re_steps: int = 30  # RE: ascent steps per iteration, warm-started from the last theta
+    re_pool: int = 10  # RE: iterations whose rollouts are pooled as importance samples
+    re_confidence: float = 0.95  # RE: Hoeffding confidence of the L1 widths epsilon_i (0: no L1 term)
+    # RE: how the L1 term -sum eps_i |theta_i| is stepped. "subgradient" (the paper): theta_i flips by
+    # +-re_step eps_i around 0 every step; "proximal" (soft-thresholding): such theta_i rest at 0
+    re_l1_step: str = "proximal"
+    scirl_steps: int = 40  # SCIRL: normalised subgradient steps (as the authors' code)
+    scirl_step_size: float = 3.0  # SCIRL: step size / (k + 1) at step k (authors: 3 / (k + 1))
 
     def __post_init__(self) -> None:
         if self.method not in REWARD_STEPS:
@@ -346,7 +362,14 @@ class Nirl:
         margin = float("nan")
         if self.reward_step is not None:  # line 5
             greedy = network.greedy_actions(network.q_values(self.net, self.demo_inputs))
-            self.theta, margin = self.reward_step.update(self.theta, trajectories, self.iteration, greedy)
+            # the policy that drove the rollouts (RE-IRL's importance weights read it)
+            drove = (before["W1"], before["W2"])
+            context = RolloutContext(
+                eta, lambda phi: network.q_values(self.net, network_inputs(phi, c.input_scaling), drove)
+            )
+            self.theta, margin = self.reward_step.update(
+                self.theta, trajectories, self.iteration, greedy, context
+            )
             if margin <= c.epsilon:  # lines 6-8
                 self.stopped = True
 

@@ -1,0 +1,79 @@
+"""Wall time and peak memory of the main job, ``nirl-mj run``, on its default task.
+
+Runs the command as a subprocess in a temporary directory and samples the
+resident memory of its whole process tree (the job and its worker processes)
+every 0.2 s; the peak is the largest sum seen. Target (issue #4): at most
+5 minutes of wall time on a 2-core machine after set-up, peak memory under
+2 GB. Writes docs/PERFORMANCE.md.
+
+    python bench/bench_main_job.py [-- extra nirl-mj run options]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+try:
+    from report import write_section
+except ImportError:  # run as a module
+    from bench.report import write_section
+
+
+def _tree_rss(pid: int) -> int:
+    """Resident bytes of ``pid`` and all its descendants (Linux /proc)."""
+    children: dict[int, list[int]] = {}
+    rss: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            statm = (entry / "statm").read_text().split()
+        except OSError:
+            continue
+        child = int(entry.name)
+        children.setdefault(int(fields[1]), []).append(child)
+        rss[child] = int(statm[1]) * os.sysconf("SC_PAGE_SIZE")
+    total, stack = 0, [pid]
+    while stack:
+        p = stack.pop()
+        total += rss.get(p, 0)
+        stack.extend(children.get(p, []))
+    return total
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("extra", nargs="*", help="more `nirl-mj run` options (after --)")
+    args = parser.parse_args()
+    exe = Path(sys.executable).with_name("nirl-mj")
+    with tempfile.TemporaryDirectory() as tmp:
+        command = [str(exe), "run", "--out", str(Path(tmp) / "run"), "--quiet", *args.extra]
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        peak = 0
+        while proc.poll() is None:
+            peak = max(peak, _tree_rss(proc.pid))
+            time.sleep(0.2)
+        wall = time.perf_counter() - t0
+        output = proc.stdout.read()
+    if proc.returncode != 0:
+        sys.exit(f"nirl-mj run failed ({proc.returncode}):\n{output}")
+    table = next((line for line in output.splitlines() if line.startswith("| NIRL")), "")
+    body = (
+        f"`nirl-mj run {' '.join(args.extra)}` (default task, all cores), from an empty directory: "
+        f"**{wall / 60:.0f}:{wall % 60:02.0f} wall**, peak resident memory of the job and its workers "
+        f"**{peak / 2**30:.2f} GB**. Targets: 5:00 and 2 GB.\n\nIts NIRL row: `{table}`"
+    )
+    print(body)
+    write_section("Main job (bench/bench_main_job.py)", body)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,129 @@
+"""Apprenticeship learning, projection method (Abbeel & Ng 2004, section 3.1), as a reward step.
+
+The paper's algorithm; its step numbers are used in the comments below:
+
+1. Pick some policy pi^(0) at random, estimate mu^(0) = mu(pi^(0)) by rollouts; mu_bar^(0) = mu^(0),
+   w^(1) = mu_E - mu_bar^(0), i = 1.
+2. (i >= 2) Projection: with d = mu^(i-1) - mu_bar^(i-2),
+   mu_bar^(i-1) = mu_bar^(i-2) + [d^T (mu_E - mu_bar^(i-2)) / ||d||^2] d;
+   w^(i) = mu_E - mu_bar^(i-1), t^(i) = ||w^(i)||_2.
+3. If t^(i) <= epsilon, terminate.
+4. Compute the optimal policy pi^(i) for the reward R = (w^(i))^T f (an RL step).
+5. Estimate mu^(i) = mu(pi^(i)) by rollouts; i <- i + 1; go to step 2.
+
+Model-free reading in the shared loop (:class:`nirl_mj.learn.nirl.Nirl`): the loop's iteration i
+rolls out the learner's current Boltzmann policy (eq. 8). At i = 0 that is the random initial
+network at the schedule's low eta (nearly uniform): step 1's random policy. Afterwards it is
+pi^(i), so each update does step 5 for the policy the previous update's reward produced, then
+steps 2-3. Step 4 is the loop's ONE iteration of SARSA targets and backpropagation (eq. 14-15)
+on r = theta^T f with the network warm-started, not an RL solve to optimality: the policy whose
+mu is measured next has only partly adapted to w^(i). The loop's stopping rule (step 3) is
+``NirlConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
+on validation arenas, as for every method, not the paper's "best t or a mixture".
+
+Feature expectations (``NirlConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
+each trajectory's discounted feature sum from its first pair, averaged over trajectories. With
+gamma = 0.65 that weighs about the first three decisions of each trajectory, in open space near
+the start (docs/ALGORITHM.md, "Baselines"). ``"suffix"`` averages the discounted suffix sum of every
+visited pair instead, so every state counts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from nirl_mj.learn.mmp import discounted_suffix_sums, feature_expectations
+
+__all__ = ["EXPECTATIONS", "expectations", "project", "ProjectionStep"]
+
+EXPECTATIONS = ("trajectory", "suffix")
+
+
+def expectations(fs: Sequence[np.ndarray], gamma: float, kind: str) -> np.ndarray:
+    """Feature expectations mu (D,) of trajectories given by their pair features fs[i] (L_i, D).
+
+    ``"trajectory"``: (1/N_T) sum_i sum_t gamma^(t-1) f(s_t^i, a_t^i) (eq. 11). ``"suffix"``: the mean
+    over all M pairs of mu_hat(s_t, a_t) = sum_{k >= t} gamma^(k-t) f_k (Monte-Carlo eq. 3); zeros if
+    there is no pair. Units: those of f, summed over ~1 / (1 - gamma) decisions.
+    """
+    if kind not in EXPECTATIONS:
+        raise ValueError(f"unknown expectations {kind!r}; accepted: {', '.join(EXPECTATIONS)}")
+    if kind == "trajectory":
+        return feature_expectations(fs, gamma)
+    sums = [discounted_suffix_sums(f, gamma) for f in fs if len(f)]
+    if not sums:
+        return np.zeros(np.shape(fs[0])[-1])
+    return np.concatenate(sums).mean(axis=0)
+
+
+def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
+    """Step 2: the point of the segment [mu_bar, mu] closest to mu_E, as the new mu_bar (D,).
+
+    Abbeel & Ng project mu_E onto the LINE through mu_bar and mu: coefficient
+    c = (mu - mu_bar)^T (mu_E - mu_bar) / ||mu - mu_bar||^2. The coefficient is clipped to [0, 1]
+    here (a reading): mu_bar then stays the feature expectation of a mixture of the policies seen,
+    and t = ||mu_E - mu_bar|| never grows. With an exact RL step c is in [0, 1] anyway; with one
+    SARSA iteration per AL iteration (this loop) the new policy can be worse for w than mu_bar,
+    and the unclipped line would extrapolate past every policy. mu == mu_bar leaves mu_bar as is.
+    """
+    mu_bar = np.asarray(mu_bar, dtype=np.float64)
+    d = np.asarray(mu, dtype=np.float64) - mu_bar
+    dd = float(d @ d)
+    if dd == 0.0:
+        return mu_bar.copy()
+    # step 2: c = (mu - mu_bar)^T (mu_E - mu_bar) / ||mu - mu_bar||^2, kept in [0, 1]
+    c = float(d @ (np.asarray(mu_e, dtype=np.float64) - mu_bar)) / dd
+    return mu_bar + min(max(c, 0.0), 1.0) * d
+
+
+def _pair_features(trajectories: Sequence, kind: str) -> list[np.ndarray]:
+    """f(s_t, a_t) (L_i, D) of every trajectory (empty ones included: eq. 11 counts them)."""
+    from nirl_mj.learn.reward import pair_features
+
+    return [pair_features(t.features[:-1], t.actions, kind) for t in trajectories]
+
+
+class ProjectionStep:
+    """AL's reward step: theta = w / ||w||, w = mu_E - mu_bar after the projection (steps 1-3).
+
+    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``al_expectations``). theta is w scaled to unit norm: the loop maps rewards affinely into
+    [0, 1 - gamma], so the scale of w does not change the learner; the unit norm keeps theta
+    comparable with NIRL's ||theta|| <= 1. The convergence measure is t = ||w||_2.
+    """
+
+    def __init__(self, config, demos: Sequence) -> None:
+        self.gamma = float(config.gamma)
+        self.kind = config.al_expectations
+        self.features = config.reward_features
+        # mu_E from the demonstrations (eq. 11, or the suffix mean)
+        self.mu_e = expectations(_pair_features(demos, self.features), self.gamma, self.kind)
+        self.mu_bar: np.ndarray | None = None  # None until step 1 has seen the first rollouts
+
+    def update(
+        self,
+        theta: np.ndarray,
+        trajectories: Sequence,
+        iteration: int,
+        greedy_on_demos: np.ndarray,
+        context: object = None,
+    ) -> tuple[np.ndarray, float]:
+        """Steps 5 and 2-3 (or step 1 at the first call) on this iteration's rollouts -> (theta, t)."""
+        # step 5 (step 1 at the first call): mu of the policy that produced these rollouts
+        mu = expectations(_pair_features(trajectories, self.features), self.gamma, self.kind)
+        if self.mu_bar is None:
+            self.mu_bar = mu  # step 1: mu_bar^(0) = mu^(0)
+        else:
+            self.mu_bar = project(self.mu_bar, mu, self.mu_e)  # step 2
+        w = self.mu_e - self.mu_bar  # w^(i) = mu_E - mu_bar^(i-1)
+        t = float(np.linalg.norm(w))  # t^(i) = ||w^(i)||_2; the loop applies step 3
+        return (w / t if t > 0.0 else w), t
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {"mu_bar": np.zeros(0) if self.mu_bar is None else self.mu_bar.copy()}
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        mu_bar = np.asarray(state["mu_bar"], dtype=np.float64)
+        self.mu_bar = mu_bar.copy() if mu_bar.size else None

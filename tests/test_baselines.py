@@ -1,0 +1,288 @@
+"""The Table I baselines (AL, RE-IRL, SCIRL): their reward steps by hand, and short runs of the loop."""
+
+import math
+
+import numpy as np
+import pytest
+
+from nirl_mj import spec
+from nirl_mj.demos import ExpertConfig, collect
+from nirl_mj.evaluate import domain_seeds, evaluate
+from nirl_mj.learn.al import ProjectionStep, expectations, project
+from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext
+from nirl_mj.learn.mmp import mmp_objective
+from nirl_mj.learn.nirl import NirlConfig
+from nirl_mj.learn.reirl import (
+    RelativeEntropyStep,
+    ascent_step,
+    dual_gradient,
+    hoeffding_widths,
+    importance_weights,
+    log_importance_ratios,
+    soft_threshold,
+    windowed_sums,
+)
+from nirl_mj.learn.scirl import ScirlStep, heuristic_expectations, minimise_scirl
+from nirl_mj.learn.train import load_checkpoint, load_policy, train
+from nirl_mj.task import make_env
+from nirl_mj.trajectory import Trajectory, save_dataset
+
+# phi(s) with every D = 0, V = 1, I = 0, U = 0: the "extended" block of 25 values is 1 at V=1
+# (index 7) and at the constant (index 24), so f(s, a) = e[25 a + 7] + e[25 a + 24].
+SIMPLE_PHI = np.array([0] * 7 + [1] + [0] * 8, dtype=np.float32)
+
+
+def fake(actions: list[int]) -> Trajectory:
+    """A trajectory in SIMPLE_PHI states with the given actions (only phi and actions are read)."""
+    n = len(actions)
+    return Trajectory(
+        features=np.tile(SIMPLE_PHI, (n + 1, 1)), actions=np.array(actions), ranges=np.zeros((n + 1, 9)),
+        poses=np.zeros((n + 1, 3)), times=0.5 * np.arange(n + 1), arena_seed=0, task={}, speed=2.0,
+        outcome="timeout", demonstrator="test",
+    )  # fmt: skip
+
+
+def pattern(c) -> np.ndarray:
+    """(6,) per-action values -> the (150,) "extended" vector with c[a] at 25 a + 7 and 25 a + 24."""
+    out = np.zeros(150)
+    for a, v in enumerate(c):
+        out[25 * a + 7] = out[25 * a + 24] = v
+    return out
+
+
+def uniform_context() -> RolloutContext:
+    return RolloutContext(eta=1.0, q_values=lambda phi: np.zeros((len(phi), 6)))
+
+
+def test_baselines_are_registered():
+    assert {"nirl", "al", "re", "scirl"} <= set(REWARD_STEPS)
+    with pytest.raises(ValueError, match="unknown method"):
+        NirlConfig.default(method="gail")
+
+
+# -- apprenticeship learning (Abbeel & Ng 2004, projection) ----------------------------------------
+
+
+def test_al_projection_on_2d_vectors_by_hand():
+    mu_e = np.array([1.0, 1.0])
+    # c = (2, 0) . (1, 1) / ||(2, 0)||^2 = 1/2: mu_bar = (1, 0), w = (0, 1), t = 1
+    np.testing.assert_allclose(project([0.0, 0.0], [2.0, 0.0], mu_e), [1.0, 0.0])
+    # from mu_bar = (1, 0) towards mu = (1, 2): c = (0, 2) . (0, 1) / 4 = 1/2 -> (1, 1) = mu_E, t = 0
+    np.testing.assert_allclose(project([1.0, 0.0], [1.0, 2.0], mu_e), [1.0, 1.0])
+    # the coefficient is kept in [0, 1]: c = -1 stays at mu_bar, c = 3 stops at mu
+    np.testing.assert_allclose(project([0.0, 0.0], [-1.0, 0.0], mu_e), [0.0, 0.0])
+    np.testing.assert_allclose(project([0.0, 0.0], [1.0, 0.0], [3.0, 0.0]), [1.0, 0.0])
+    np.testing.assert_allclose(project([0.5, 0.5], [0.5, 0.5], mu_e), [0.5, 0.5])  # mu == mu_bar
+
+
+def test_al_expectations_whole_trajectory_and_suffix_by_hand():
+    f = [np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]), np.array([[2.0, 0.0]])]
+    # eq. 11, gamma 0.5: ((1, 0) + 0.5 (0, 1) + 0.25 (1, 1) + (2, 0)) / 2
+    np.testing.assert_allclose(expectations(f, 0.5, "trajectory"), [3.25 / 2, 0.75 / 2])
+    # suffix sums (1.25, 0.75), (0.5, 1.5), (1, 1), (2, 0): their mean over the 4 pairs
+    np.testing.assert_allclose(expectations(f, 0.5, "suffix"), [4.75 / 4, 3.25 / 4])
+    with pytest.raises(ValueError, match="unknown expectations"):
+        expectations(f, 0.5, "occupancy")
+
+
+def test_al_step_runs_steps_1_and_2_on_rollouts():
+    step = ProjectionStep(NirlConfig.default(method="al", gamma=0.5), [fake([0, 0])])
+    np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))  # eq. 11: 1 + 0.5
+    # step 1: the first rollouts' mu^0 = mu_bar^0; w = mu_E - mu^0 = (1.5, -1) per component pair
+    theta, t = step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
+    assert t == pytest.approx(math.sqrt(2 * (1.5**2 + 1.0)))
+    np.testing.assert_allclose(theta, pattern([1.5, -1, 0, 0, 0, 0]) / t)
+    # step 2: mu^1 = (0.5, 0, 1) (actions 2 then 0); d = (0.5, -1, 1), c = 1.75 / 2.25 = 7/9
+    saved = step.state()
+    theta, t = step.update(theta, [fake([2, 0])], 1, np.zeros(2))
+    np.testing.assert_allclose(step.mu_bar, pattern([7 / 18, 2 / 9, 7 / 9, 0, 0, 0]))
+    assert t == pytest.approx(math.sqrt(2 * ((10 / 9) ** 2 + (2 / 9) ** 2 + (7 / 9) ** 2)))
+    np.testing.assert_allclose(theta, pattern([10 / 9, -2 / 9, -7 / 9, 0, 0, 0]) / t)
+    assert np.linalg.norm(theta) == pytest.approx(1.0)
+    # a checkpoint restores mu_bar exactly
+    other = ProjectionStep(NirlConfig.default(method="al", gamma=0.5), [fake([0, 0])])
+    other.load_state(saved)
+    np.testing.assert_array_equal(other.update(np.zeros(150), [fake([2, 0])], 1, np.zeros(2))[0], theta)
+
+
+# -- relative entropy IRL (Boularias, Kober & Peters 2011) ---------------------------------------
+
+
+def test_re_samples_windows_and_ratios_by_hand():
+    # gamma 0.5, H = 2: (1 + 0.5 * 2, 2 + 0.5 * 4, 4)
+    np.testing.assert_allclose(windowed_sums(np.array([[1.0], [2.0], [4.0]]), 0.5, 2), [[2.0], [4.0], [4.0]])
+    # ln[(1/6) / pi] per pair: ln(1/3), ln(2/3), 0; over windows of 2 pairs
+    np.testing.assert_allclose(
+        log_importance_ratios(np.array([0.5, 0.25, 1 / 6]), 2),
+        [math.log(2 / 9), math.log(2 / 3), 0.0],
+        atol=1e-12,
+    )
+    # epsilon = range sqrt(-ln(1 - delta) / (2 N)) sum_{k<H} gamma^k = sqrt(ln 4 / 4) * 1.5
+    eps = hoeffding_widths(np.array([1.0, 0.0]), 2, 0.5, 2, 0.75)
+    np.testing.assert_allclose(eps, [1.5 * math.sqrt(math.log(4.0) / 4.0), 0.0])
+    assert hoeffding_widths(np.ones(3), 30, 0.65, 16, 0.0).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_re_gradient_with_importance_weights_by_hand():
+    f = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    log_ratio = np.array([0.0, math.log(2.0), -math.log(2.0)])  # U/pi = 1, 2, 1/2
+    theta = np.array([math.log(2.0), 0.0])  # exp(theta^T f) = 2, 1, 2
+    # w ~ (1 * 2, 2 * 1, 1/2 * 2) = (2, 2, 1) / 5
+    np.testing.assert_allclose(importance_weights(theta, f, log_ratio), [0.4, 0.4, 0.2])
+    # mu_E - sum w f - eps sign(theta) = (1, 0.5) - (0.6, 0.6) - (0.1 * 1, 0.2 * 0)
+    grad = dual_gradient(theta, np.array([1.0, 0.5]), f, log_ratio, np.array([0.1, 0.2]))
+    np.testing.assert_allclose(grad, [0.3, -0.1])
+    # one ascent step of size 1: the paper's subgradient form, and the proximal form (soft-threshold
+    # of theta + (0.4, -0.1) by (0.1, 0.2): the second component, inside its width, rests at 0)
+    args = (np.array([1.0, 0.5]), f, log_ratio, np.array([0.1, 0.2]), 1.0)
+    np.testing.assert_allclose(ascent_step(theta, *args, proximal=False), [math.log(2.0) + 0.3, -0.1])
+    np.testing.assert_allclose(ascent_step(theta, *args, proximal=True), [math.log(2.0) + 0.3, 0.0])
+    np.testing.assert_allclose(
+        soft_threshold(np.array([1.0, -1.0, 0.1]), np.array([0.25, 0.5, 0.2])), [0.75, -0.5, 0]
+    )
+    # log-sum-exp: huge scores do not overflow
+    assert np.isfinite(importance_weights(np.array([800.0, 0.0]), f, log_ratio)).all()
+
+
+def test_re_step_importance_weights_from_the_rollout_policy():
+    config = NirlConfig.default(method="re", gamma=0.5, re_steps=1, re_step=1.0, re_confidence=0.0)
+    step = RelativeEntropyStep(config, [fake([0, 0])])
+    np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))
+    with pytest.raises(ValueError, match="RolloutContext"):
+        step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
+    # uniform behaviour: U/pi = 1, w uniform at theta = 0; one step: theta = mu_E - mean f^tau
+    theta, _ = step.update(np.zeros(150), [fake([1]), fake([0])], 0, np.zeros(2), uniform_context())
+    np.testing.assert_allclose(theta, pattern([1.0, -0.5, 0, 0, 0, 0]))
+    # Boltzmann behaviour with pi(forward) = 1/2 and 1/10 for the others: ln[U/pi] = ln(1/3) + ln(5/3)
+    skewed = RolloutContext(
+        eta=1.0, q_values=lambda phi: np.tile([math.log(5.0), 0, 0, 0, 0, 0], (len(phi), 1))
+    )
+    step.update(theta, [fake([0, 1])], 1, np.zeros(2), skewed)
+    assert len(step.pool) == 2  # pooled with the first iteration's samples
+    np.testing.assert_allclose(step.pool[1][1], [math.log(5 / 9)])
+    np.testing.assert_allclose(step.pool[1][0], [pattern([1.0, 0.5, 0, 0, 0, 0])])
+    # "suffix": one sample per pair
+    suffix = RelativeEntropyStep(
+        NirlConfig.default(method="re", gamma=0.5, re_expectations="suffix"), [fake([0, 0])]
+    )
+    np.testing.assert_allclose(suffix.mu_e, pattern([1.25, 0, 0, 0, 0, 0]))  # (1.5 + 1) / 2
+
+
+# -- SCIRL (Klein, Geist, Piot & Pietquin 2012) ---------------------------------------------------
+
+
+def test_scirl_heuristic_for_the_actions_not_taken_by_hand():
+    mu_taken = np.array([[1.0, 2.0]])
+    f_all = np.array([[[1.0, 0.0], [0.0, 1.0]]])
+    # the expert's action keeps its Monte-Carlo mu; the other: f(s, a) + gamma mu_E(s, a_E)
+    np.testing.assert_allclose(
+        heuristic_expectations(mu_taken, f_all, np.array([0]), 0.5), [[[1, 2], [0.5, 2]]]
+    )
+
+
+def test_scirl_subgradient_and_normalised_step_by_hand():
+    mu_taken = np.array([[1.0, 0.0]])
+    mu_all = np.array([[[1.0, 0.0], [0.0, 1.0]]])
+    loss = np.array([[0.0, 0.5]])
+    # theta = (0.2, 0.4): scores (0.2 + 0, 0.4 + 0.5); J = 0.9 - 0.2; subgradient mu(a=1) - mu(a_E)
+    j, grad = mmp_objective(np.array([0.2, 0.4]), mu_taken, mu_all, loss, 0.0)
+    assert j == pytest.approx(0.7)
+    np.testing.assert_allclose(grad, [-1.0, 1.0])
+    # theta_0 = 0 (J = 0.5), theta_1 = P(0 - 3 g / ||g||) = (1, -1) / sqrt 2: J = 0, zero subgradient
+    theta, j = minimise_scirl(mu_all, mu_taken, loss, steps=40, step_size=3.0)
+    np.testing.assert_allclose(theta, np.array([1.0, -1.0]) / math.sqrt(2.0))
+    assert j == 0.0
+    theta0, j0 = minimise_scirl(mu_all, mu_taken, loss, steps=0, step_size=3.0)
+    assert j0 == 0.5 and not theta0.any()
+
+
+def test_scirl_reward_is_fitted_once_and_prefers_the_experts_actions():
+    demos = [fake([0, 0, 3]), fake([3, 0])]
+    step = ScirlStep(NirlConfig.default(method="scirl", gamma=0.5), demos)
+    theta, j = step.update(np.zeros(150), [], 0, np.zeros(5))
+    assert np.linalg.norm(theta) <= 1.0 + 1e-12
+    again, _ = step.update(theta, [fake([5])], 7, np.zeros(5))  # the rollouts are not read
+    np.testing.assert_array_equal(theta, again)
+    # the same state, with actions 0 (3 times) and 3 (twice): the margin ranks 0 and 3 above the rest
+    per_action = theta.reshape(6, 25)[:, 7] + theta.reshape(6, 25)[:, 24]
+    assert set(np.argsort(per_action)[-2:]) == {0, 3}
+
+
+# -- short runs of the shared loop ----------------------------------------------------------------
+
+TINY = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 8})
+# An open arena (no obstacle inside the walls) the rule expert crosses in ~28 decisions: a budget
+# of 10 iterations learns to reach the target there, and a uniform random policy does not.
+OPEN = spec.replace(
+    spec.load_task("navigate"),
+    arena={"size": (30.0, 30.0), "start": (5.0, 5.0), "target": (25.0, 25.0), "static_obstacles": 0},
+    robot={"drive": "planar"},
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_demos(tmp_path_factory):
+    path = tmp_path_factory.mktemp("demos") / "tiny.npz"
+    save_dataset(path, collect(TINY, ExpertConfig("rule"), episodes=3, seed=0))
+    return path
+
+
+@pytest.fixture(scope="module")
+def open_demos(tmp_path_factory):
+    path = tmp_path_factory.mktemp("demos") / "open.npz"
+    save_dataset(path, collect(OPEN, ExpertConfig("rule"), episodes=4, seed=0))
+    return path
+
+
+@pytest.mark.parametrize("method", ["al", "re", "scirl"])
+def test_resume_of_a_baseline_run_ends_with_the_uninterrupted_weights(tmp_path, tiny_demos, method):
+    config = NirlConfig.default(
+        method=method, episodes=3, trajectories_per_episode=2, validation_arenas=2, validate_every=2,
+        replay_episodes=2, re_pool=2,
+    )  # fmt: skip
+    train(tmp_path / "whole", TINY, tiny_demos, config, seed=1)
+
+    def interrupt(metrics):
+        if metrics.episode == 1:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path / "split", TINY, tiny_demos, config, seed=1, on_metrics=interrupt)
+    train(tmp_path / "split", TINY, tiny_demos, config, seed=1, resume=True)
+    whole, split = load_checkpoint(tmp_path / "whole"), load_checkpoint(tmp_path / "split")
+    for key in ("net_W1", "net_W2", "theta", "thetas"):
+        np.testing.assert_array_equal(whole[key], split[key])
+    assert np.abs(whole["theta"]).sum() > 0  # the reward step did run
+    lines = (tmp_path / "split" / "metrics.jsonl").read_text().splitlines()
+    assert lines == (tmp_path / "whole" / "metrics.jsonl").read_text().splitlines()
+
+
+def progress(trajectories: list[Trajectory]) -> float:
+    """Mean share of the start-to-target distance covered by the end of each episode (1: arrived)."""
+    shares = []
+    for t in trajectories:
+        target = np.asarray(t.task["arena"]["target"])
+        start, end = (np.hypot(*(t.poses[i, :2] - target)) for i in (0, -1))
+        shares.append(1.0 if t.success else (start - end) / start)
+    return float(np.mean(shares))
+
+
+@pytest.fixture(scope="module")
+def random_progress():
+    """The uniform random policy on the test arenas (a fixed seed, so the same run every time)."""
+    rng = np.random.default_rng(0)
+    env = make_env(OPEN)
+    _, trajectories = evaluate(env, lambda phi: int(rng.integers(6)), domain_seeds("test", 0, 6))
+    return progress(trajectories)
+
+
+@pytest.mark.parametrize("method", ["al", "re", "scirl"])
+def test_a_short_baseline_run_beats_the_uniform_random_policy(tmp_path, open_demos, random_progress, method):
+    config = NirlConfig.default(
+        method=method, episodes=10, trajectories_per_episode=4, validation_arenas=3, validate_every=1,
+        final_candidates=1,
+    )  # fmt: skip
+    train(tmp_path / "run", OPEN, open_demos, config, seed=0)
+    policy, _ = load_policy(tmp_path / "run")
+    _, trajectories = evaluate(make_env(OPEN), policy, domain_seeds("test", 0, 6))
+    assert progress(trajectories) > random_progress + 0.25
