@@ -444,6 +444,74 @@ def _render_subject(args: argparse.Namespace) -> tuple:
     return policy, apply_overrides(spec, args.set), seeds[args.episode :], what
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from nirl_mj.compare import json_line, markdown_table, run_compare
+
+    summary = _run_experiment(args, "compare", run_compare)
+    print(markdown_table(summary))
+    return _experiment_end(args, summary, json_line)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from nirl_mj.experiment import load_experiment
+    from nirl_mj.sweep import json_line, markdown_table, run_sweep
+
+    summary = _run_experiment(args, "sweep", run_sweep)
+    print(markdown_table(summary, load_experiment(args.task, args.quick)))
+    return _experiment_end(args, summary, json_line)
+
+
+def _run_experiment(args: argparse.Namespace, kind: str, run) -> dict:
+    """Loads the experiment spec, then runs (or resumes) it with a progress bar over its cells."""
+    from nirl_mj.experiment import ExperimentError, load_experiment
+    from nirl_mj.protocol import Execution
+
+    experiment = load_experiment(args.task, args.quick)
+    if experiment.kind != kind:
+        raise ExperimentError(f"{args.task} is a {experiment.kind} experiment: run it with `nirl-mj "
+                              f"{experiment.kind}`")  # fmt: skip
+    if args.retries < 0:
+        raise ExperimentError(f"--retries {args.retries}: must be >= 0")
+    if args.address and args.executor != "ray":
+        raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
+    out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
+    execution = Execution(args.executor, args.workers, args.address, args.retries, args.report)
+    bars: list[tqdm] = []  # made once the number of cells is known
+
+    def log(text: str) -> None:
+        tqdm.write(text, file=sys.stderr)
+
+    def start(total: int, done: int) -> None:
+        log(f"{total} cells, {done} already finished in {out}; executor {args.executor}")
+        bars.append(tqdm(total=total, initial=done, unit="cell", file=sys.stderr, disable=args.quiet,
+                         desc=experiment.name))  # fmt: skip
+
+    def done(cell_id: str, result, failure) -> None:
+        bars[0].update()
+        bars[0].set_postfix_str(cell_id if failure is None else f"{cell_id} FAILED")
+
+    try:
+        return run(experiment, out, execution, log, start, done)
+    except KeyboardInterrupt:
+        print(f"interrupted: finished cells are kept in {out}/cells; run the same command to resume",
+              file=sys.stderr)  # fmt: skip
+        raise SystemExit(130) from None
+    finally:
+        for bar in bars:
+            bar.close()
+
+
+def _experiment_end(args: argparse.Namespace, summary: dict, json_line) -> int:
+    """Prints the files and failures; 1 if any cell failed (its results are missing), else 0."""
+    print("wrote " + ", ".join(summary["files"]))
+    for failure in summary["failures"]:
+        attempts = failure["attempts"]
+        print(f"FAILED {failure['id']} ({attempts} attempt(s)): {failure['error']}", file=sys.stderr)
+    if args.json:
+        print(json_line(summary))
+    return 1 if summary["failures"] else 0
+
+
 def _cmd_task(args: argparse.Namespace) -> int:
     from nirl_mj.spec import load_task
 
@@ -487,6 +555,30 @@ def _add_task_arguments(parser: argparse.ArgumentParser, default: str | None = "
     parser.add_argument("--task", default=default, help=helps)
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
+
+
+def _add_experiment_arguments(parser: argparse.ArgumentParser, default: str, func) -> None:
+    """The options of ``compare`` and ``sweep`` (docs/EXPERIMENTS.md)."""
+    from nirl_mj.executors import EXECUTORS
+
+    parser.add_argument("--task", default=default, metavar="SPEC",
+                        help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
+    parser.add_argument("--quick", action="store_true", help="the spec's [quick] values: a smoke run")
+    parser.add_argument("--out", default=None, help="output directory (default: runs/NAME[-quick]); "
+                        "rerunning into it resumes the same experiment, another one is refused")  # fmt: skip
+    parser.add_argument("--executor", choices=EXECUTORS, default="local",
+                        help="where cells run: this process, local processes (default), or Ray")  # fmt: skip
+    parser.add_argument("--workers", type=_positive_int, default=None,
+                        help="local processes or local Ray CPUs (default: all cores)")  # fmt: skip
+    parser.add_argument("--address", default=None, help="with --executor ray: an existing cluster's address")
+    parser.add_argument("--retries", type=int, default=2, metavar="N",
+                        help="further attempts of a failing cell (default: 2)")  # fmt: skip
+    parser.add_argument("--report", action="store_true",
+                        help="run nothing: write the tables from the cells finished so far (a partial "
+                        "report of a long or interrupted experiment; safe while it runs)")  # fmt: skip
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON on the last line")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=func)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -635,6 +727,13 @@ def build_parser() -> argparse.ArgumentParser:
                            help="draw time, step, action and danger levels onto the video")  # fmt: skip
     rendering.add_argument("--overwrite", action="store_true", help="replace existing output files")
     rendering.set_defaults(func=_cmd_render)
+
+    compare = sub.add_parser(
+        "compare", help="the paper's Table I protocol: every method, R runs of T tests, next to the paper"
+    )
+    _add_experiment_arguments(compare, "tasks/table1.toml", _cmd_compare)
+    sweep = sub.add_parser("sweep", help="Fig. 6: success against obstacles and speed (CSV and line plot)")
+    _add_experiment_arguments(sweep, "tasks/fig6.toml", _cmd_sweep)
 
     inspect = sub.add_parser("inspect", help="validate a dataset file and print its summary")
     inspect.add_argument("path")

@@ -1,0 +1,261 @@
+"""The paper's Table I protocol: every method, R runs of T tests each, next to the paper's numbers.
+
+A cell is one (method, run): run r trains the method with seed ``seed + r`` on
+the experiment's demonstrations (trainable methods; resumable in
+``OUT/runs/METHOD/SEED``) and tests its greedy policy on the T held-out arenas
+of run r, the same for every method (``nirl_mj.protocol``). Per method: average
+/ best / worst success over the runs with a 95 % Student-t interval of the
+average (``nirl_mj.stats``), mean collision, timeout and physics-error rates,
+SPL. Outputs in OUT:
+
+- ``table.md``, ``table.csv``, ``table.png`` (bar chart next to the paper's);
+- ``results.json``: the summaries, every cell's metrics, failed cells;
+- ``strip.png`` with a ``[strip]`` table (Fig. 8: snapshots of one test episode).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+from nirl_mj.atomic import write_text
+from nirl_mj.executors import Cell
+from nirl_mj.experiment import Experiment
+from nirl_mj.protocol import (
+    Execution,
+    RunJob,
+    ensure_demos,
+    evaluate_policy,
+    failed_section,
+    failure_rows,
+    open_output,
+    policy_of,
+    run_jobs,
+)
+from nirl_mj.spec import TaskSpec
+from nirl_mj.stats import summarise_runs
+
+
+def compare_cell(job: RunJob, test_task: TaskSpec) -> dict:
+    """Trains (if it trains) and tests one (method, run); returns its ``evaluate`` metrics."""
+    metrics = evaluate_policy(policy_of(job), test_task, job.test_seeds, job.method.name)
+    return {"method": job.method.name, "run": job.run, "seed": job.seed, **metrics}
+
+
+def cell_id(method: str, run: int) -> str:
+    return f"{method}-run{run:03d}"
+
+
+def run_compare(
+    experiment: Experiment,
+    out: str | Path,
+    execution: Execution | None = None,
+    log: Callable[[str], None] = print,
+    on_start: Callable[[int, int], None] | None = None,
+    on_done: Callable | None = None,
+) -> dict:
+    """Runs (or resumes) the comparison in ``out``; writes the tables and returns the summary.
+
+    ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
+    """
+    from nirl_mj.demos import default_workers
+
+    execution = execution or Execution()
+    execution.check_output(out)
+    out = open_output(out, experiment)
+    demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
+    jobs = run_jobs(experiment, out, demos)
+    cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
+    with execution.start(out) as runner:
+        if on_start:
+            on_start(len(cells), runner.finished(cells))
+        report = runner.run(cells, on_done)
+    summary = summarise(experiment, report.results)
+    summary["failures"] = failure_rows(report.failures)
+    summary["unfinished"] = runner.unfinished
+    files = write_outputs(out, experiment, summary, report.results)
+    if experiment.strip is not None and not execution.report_only:
+        if cell_id(experiment.strip.method, 0) in report.results:
+            files.append(write_strip(out, experiment, jobs, log))
+        else:
+            log(f"strip: not written: {cell_id(experiment.strip.method, 0)} failed")
+    summary["files"] = [str(f) for f in files if f is not None]
+    return summary
+
+
+def summarise(experiment: Experiment, results: dict) -> dict:
+    """Per method: ``stats.summarise_runs`` over its finished runs, failed runs, the paper's row."""
+    methods = {}
+    for method in experiment.methods:
+        rows = [results[i] for r in range(experiment.runs) if (i := cell_id(method.name, r)) in results]
+        methods[method.name] = {
+            **summarise_runs(rows),
+            "failed": experiment.runs - len(rows),  # failed, or unfinished in a --report
+            "paper": {k: v / 100 for k, v in experiment.paper.get(method.name, {}).items()} or None,
+        }
+    return {
+        "experiment": experiment.name,
+        "description": experiment.description,
+        "quick": experiment.quick,
+        "runs": experiment.runs,
+        "tests": experiment.tests,
+        "methods": methods,
+    }
+
+
+def json_line(summary: dict) -> str:
+    """The ``--json`` last line: ``{"methods": {NAME: {avg, best, worst, ci, collision, timeout, runs,
+    failed}}, "failures": [cell ids]}``, rates as fractions."""
+    keys = ("avg", "best", "worst", "ci", "collision", "timeout", "runs", "failed")
+    return json.dumps({
+        "methods": {name: {k: s.get(k) for k in keys} for name, s in summary["methods"].items()},
+        "failures": [f["id"] for f in summary["failures"]],
+    })  # fmt: skip
+
+
+def _pct(value: float | None, digits: int = 1) -> str:
+    return (
+        "-"
+        if value is None or (isinstance(value, float) and math.isnan(value))
+        else f"{100 * value:.{digits}f}"
+    )
+
+
+def markdown_table(summary: dict) -> str:
+    """The results next to the paper's Table I, percent."""
+    lines = [
+        "| method | runs | success avg [95 % CI] | best | worst | collision | timeout | SPL "
+        "| paper avg / best / worst |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, s in summary["methods"].items():
+        paper = s["paper"] or {}
+        paper_text = " / ".join(_pct(paper.get(k), 0) for k in ("avg", "best", "worst")) if paper else "-"
+        runs = f"{s['runs']}" + (f" ({s['failed']} missing)" if s["failed"] else "")
+        if not s["runs"]:
+            lines.append(f"| {name} | {runs} | - | - | - | - | - | - | {paper_text} |")
+            continue
+        ci = s["ci"]
+        ci_text = f" [{_pct(ci[0])}, {_pct(ci[1])}]" if ci[0] is not None else ""
+        lines.append(
+            f"| {name} | {runs} | {_pct(s['avg'])}{ci_text} | {_pct(s['best'], 0)} | {_pct(s['worst'], 0)} "
+            f"| {_pct(s['collision'])} | {_pct(s['timeout'])} | {s['spl']:.2f} | {paper_text} |"
+        )
+    return "\n".join(lines)
+
+
+CSV_COLUMNS = ("method", "runs", "failed", "tests", "success_avg", "success_ci_low", "success_ci_high",
+               "success_best", "success_worst", "success_sd", "pooled_wilson_low", "pooled_wilson_high",
+               "collision_avg", "timeout_avg", "physics_error_avg", "spl_avg", "paper_avg", "paper_best",
+               "paper_worst")  # fmt: skip
+
+
+def csv_table(summary: dict) -> str:
+    """One row per method, rates as fractions (empty where undefined)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for name, s in summary["methods"].items():
+        paper = s["paper"] or {}
+        ci, wil = s.get("ci", [None, None]), s.get("wilson", [None, None])
+        values = [name, s["runs"], s["failed"], s.get("tests"), s.get("avg"), ci[0], ci[1], s.get("best"),
+                  s.get("worst"), s.get("sd"), wil[0], wil[1], s.get("collision"), s.get("timeout"),
+                  s.get("physics_error"), s.get("spl"), paper.get("avg"), paper.get("best"),
+                  paper.get("worst")]  # fmt: skip
+        writer.writerow(["" if v is None else (f"{v:.6g}" if isinstance(v, float) else v) for v in values])
+    return buffer.getvalue()
+
+
+def bar_chart(path: Path, summary: dict, title: str) -> Path:
+    """Average success per method with its 95 % interval and best-worst range, the paper's next to it."""
+    from nirl_mj.report import plt
+
+    names = list(summary["methods"])
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(names) + 1.5), 3.8), dpi=110)
+    width, labels = 0.38, {"this work": True, "paper (Table I)": True, "best, worst run": True}
+
+    def label(text: str) -> str | None:
+        """Each legend entry once."""
+        first, labels[text] = labels[text], False
+        return text if first else None
+
+    for i, name in enumerate(names):
+        s = summary["methods"][name]
+        if s["runs"]:
+            ci = s["ci"]
+            err = None if ci[0] is None else [[100 * (s["avg"] - ci[0])], [100 * (ci[1] - s["avg"])]]
+            ax.bar(i - width / 2, 100 * s["avg"], width, color="tab:blue", yerr=err, capsize=3,
+                   label=label("this work"))  # fmt: skip
+            _extremes(ax, i - width / 2, s, "tab:red", label("best, worst run"))
+        paper = s["paper"]
+        if paper and "avg" in paper:
+            ax.bar(i + width / 2, 100 * paper["avg"], width, color="white", edgecolor="tab:gray", hatch="//",
+                   label=label("paper (Table I)"))  # fmt: skip
+            if "best" in paper and "worst" in paper:
+                _extremes(ax, i + width / 2, paper, "white", None)
+    ax.set_xticks(range(len(names)), names, rotation=20 if len(names) > 6 else 0)
+    ax.set_ylabel("success (%)")
+    ax.set_ylim(0, 122)  # room for the legend above the 100 % line
+    ax.set_yticks(range(0, 101, 20))
+    ax.set_title(title, fontsize=9)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", ncol=3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _extremes(ax, x: float, row: dict, face: str, label: str | None) -> None:
+    """The best and worst run as two diamonds at ``x`` (percent)."""
+    ax.plot([x, x], [100 * row["worst"], 100 * row["best"]], linestyle="none", marker="D", ms=3.5,
+            markerfacecolor=face, markeredgecolor="tab:red", label=label)  # fmt: skip
+
+
+def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dict) -> list[Path]:
+    """table.md, table.csv, table.png and results.json in ``out``."""
+    title = f"{experiment.name}: {experiment.runs} runs x {experiment.tests} tests"
+    title += " (bars: mean with its 95 % CI)"
+    bar_chart(out / "table.png", summary, title)
+    text = f"""# {experiment.name}{" (quick)" if experiment.quick else ""}: {experiment.description}
+
+{experiment.runs} runs per method, each trained with its own seed on the same {experiment.demos}
+demonstrations ({experiment.expert} expert) and tested on {experiment.tests} held-out arenas of
+`{experiment.test_task.name}` ({experiment.test_task.arena.static_obstacles} static and
+{experiment.test_task.arena.moving_obstacles} moving obstacles, {experiment.test_task.control.speed:g} m/s,
+{experiment.test_task.robot.drive} drive); the runs of one seed share their test arenas. Rates in percent;
+95 % CI: Student t over the runs' success rates (training seeds and test sampling both inside it).
+
+{markdown_table(summary)}
+
+![success per method](table.png)
+{failed_section(summary)}"""
+    write_text(out / "table.md", text)
+    write_text(out / "table.csv", csv_table(summary))
+    write_text(out / "results.json", json.dumps({**summary, "cells": results}, indent=1))
+    return [out / "table.md", out / "table.csv", out / "table.png", out / "results.json"]
+
+
+def write_strip(out: Path, experiment: Experiment, jobs: dict, log: Callable[[str], None]) -> Path | None:
+    """OUT/strip.png: the strip method's first run (finished) on its first test arena (Fig. 8);
+    None (logged) if nothing can render here."""
+    strip = experiment.strip
+    job = jobs[strip.method, 0]
+    try:
+        from nirl_mj.render import RenderError, snapshot_strip
+    except ImportError as exc:  # written by another module; absent in an old checkout
+        log(f"strip: nirl_mj.render.snapshot_strip is not available ({exc})")
+        return None
+    try:
+        policy = policy_of(job)  # a finished run: loads it
+        path = snapshot_strip(experiment.test_task, policy, job.test_seeds[0], out / "strip.png",
+                              strip.snapshots, strip.camera, strip.width, strip.height)  # fmt: skip
+    except (RenderError, OSError, RuntimeError, ValueError) as exc:
+        log(f"strip: not written: {exc}")
+        return None
+    log(f"strip: {path}")
+    return path

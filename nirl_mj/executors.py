@@ -1,0 +1,333 @@
+"""Running independent cells of an experiment: in this process, on local processes, or on Ray.
+
+A :class:`Cell` is a picklable module-level function with its arguments whose
+result is JSON-able (a dict of numbers, strings, lists). :func:`run_cells` runs
+a list of cells on one of three executors and returns every result by cell id:
+
+- ``serial``: one after the other in this process;
+- ``local``: ``workers`` spawned processes (default: all cores); spawn, not fork,
+  so no MuJoCo or OpenGL state is inherited;
+- ``ray``: Ray tasks of one CPU each, on the cluster at ``address`` or on a local
+  one started with ``num_cpus=workers`` (``pip install 'nirl-mj[ray]'``).
+
+Results do not depend on the executor or on ``workers``: a cell seeds itself from
+its own arguments, never from worker state; torch runs one thread inside a cell
+(a different thread count may reorder floating-point sums); and every result
+goes through JSON, so what a serial run returns is what a stored cell reads back.
+
+With a :class:`CellStore`, each finished cell's result is written atomically to
+``DIR/<cell id>.json`` as soon as it arrives, and cells found there are not run
+again: an interrupted experiment resumes where it stopped. A cell that raises,
+or whose process dies, is tried again up to ``retries`` more times; one that
+still fails is returned in :attr:`Report.failures` with its traceback (and is
+not stored, so the next run tries it again), never silently dropped.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import re
+import time
+import traceback
+from collections import Counter, deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from nirl_mj.atomic import write_text
+
+EXECUTORS = ("serial", "local", "ray")
+RAY_MISSING = "the ray executor needs Ray: pip install 'nirl-mj[ray]' (or pip install 'ray>=2.9')"
+_ID = re.compile(r"^[A-Za-z0-9_.=+-]+$")
+
+
+class ExecutorError(RuntimeError):
+    """An executor cannot run: unknown name, bad worker count, Ray missing or unreachable."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One independent unit of work: ``fn(*args)`` -> a JSON-able result.
+
+    ``id`` names the cell's file in a :class:`CellStore` (letters, digits and ``_.=+-``).
+    ``fn`` must be importable by name (a module-level function) for the process and Ray
+    executors to send it to another interpreter.
+    """
+
+    id: str
+    fn: Callable[..., Any]
+    args: tuple = ()
+
+    def __post_init__(self) -> None:
+        if not _ID.match(self.id):
+            raise ValueError(f"cell id {self.id!r}: use letters, digits and _ . = + - only")
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A cell that failed every attempt: the last error's one-line summary and traceback."""
+
+    id: str
+    error: str
+    traceback: str
+    attempts: int
+
+
+@dataclass
+class Report:
+    """What :func:`run_cells` did. ``results`` are in the order of the cells given."""
+
+    results: dict[str, Any] = field(default_factory=dict)
+    failures: dict[str, Failure] = field(default_factory=dict)
+    reused: list[str] = field(default_factory=list)  # read from the store, not run
+    computed: list[str] = field(default_factory=list)  # run now
+    seconds: dict[str, float] = field(default_factory=dict)  # wall time of each computed cell
+
+
+class CellStore:
+    """Finished cells as ``DIR/<id>.json`` files: ``{"id", "result", "seconds", "attempts"}``."""
+
+    def __init__(self, directory: str | Path) -> None:
+        self.directory = Path(directory)
+
+    def path(self, cell_id: str) -> Path:
+        return self.directory / f"{cell_id}.json"
+
+    def load(self, cell_id: str) -> Any | None:
+        """The stored result, or None if the cell has not finished (or its file is unreadable)."""
+        try:
+            return json.loads(self.path(cell_id).read_text())["result"]
+        except (OSError, ValueError, KeyError):
+            return None
+
+    def save(self, cell_id: str, result: Any, seconds: float, attempts: int) -> None:
+        self.directory.mkdir(parents=True, exist_ok=True)
+        record = {"id": cell_id, "result": result, "seconds": round(seconds, 3), "attempts": attempts}
+        write_text(self.path(cell_id), json.dumps(record, indent=1))
+
+
+def call_cell(fn: Callable[..., Any], args: tuple) -> tuple[str, str, float]:
+    """Runs one cell where it is sent; returns ("ok", result as JSON, seconds) or
+    ("error", traceback, seconds). Errors travel as text: not every exception pickles."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # the same arithmetic whatever the executor (see the module doc)
+    start = time.perf_counter()
+    try:
+        return "ok", json.dumps(fn(*args)), time.perf_counter() - start
+    except Exception:
+        return "error", traceback.format_exc(), time.perf_counter() - start
+    finally:
+        torch.set_num_threads(threads)
+
+
+class Executor:
+    """Runs lists of cells; keeps its processes (or its Ray connection) between :meth:`run` calls,
+    so an experiment's phases pay the start-up once. Use as a context manager, or :meth:`close`.
+
+    ``executor``: one of :data:`EXECUTORS`. ``workers``: processes (local) or CPUs of a local Ray
+    cluster; default all cores. ``address``: an existing Ray cluster ("auto", "ray://host:10001",
+    ...), whose own CPUs then bound the parallelism. ``retries``: further attempts of a failing cell.
+    """
+
+    def __init__(
+        self,
+        executor: str = "local",
+        workers: int | None = None,
+        address: str | None = None,
+        retries: int = 2,
+    ) -> None:
+        from nirl_mj.demos import default_workers
+
+        if executor not in EXECUTORS:
+            raise ExecutorError(f"unknown executor {executor!r}; accepted: {', '.join(EXECUTORS)}")
+        if workers is not None and workers < 1:
+            raise ExecutorError(f"workers must be >= 1, got {workers}")
+        if retries < 0:
+            raise ExecutorError(f"retries must be >= 0, got {retries}")
+        self.kind, self.workers, self.address = executor, workers or default_workers(), address
+        self.retries = retries
+        self._backend = None  # started by the first cell to compute: a resumed run may need none
+
+    def run(
+        self,
+        cells: Iterable[Cell],
+        store: CellStore | None = None,
+        on_done: Callable[[str, Any, Failure | None], None] | None = None,
+    ) -> Report:
+        """Runs the cells not already in ``store``; returns every result by id and the failures.
+        ``on_done(id, result, failure)`` is called as each cell finishes (result None on failure)."""
+        cells = list(cells)
+        ids = [c.id for c in cells]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"duplicate cell ids: {sorted(i for i, n in Counter(ids).items() if n > 1)}")
+        report, todo = Report(), []
+        for cell in cells:
+            stored = store.load(cell.id) if store else None
+            if stored is None:
+                todo.append(cell)
+            else:
+                report.results[cell.id] = stored
+                report.reused.append(cell.id)
+        if todo:
+            if self._backend is None:
+                backends = {"serial": _Serial, "local": _Local, "ray": _Ray}
+                self._backend = backends[self.kind](self.workers, self.address)
+            _drive(self._backend, todo, self.retries, store, report, on_done)
+        report.results = {i: report.results[i] for i in ids if i in report.results}
+        return report
+
+    def close(self) -> None:
+        if self._backend is not None:
+            self._backend.close()
+            self._backend = None
+
+    def __enter__(self) -> Executor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def run_cells(
+    cells: Iterable[Cell],
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    retries: int = 2,
+    store: CellStore | None = None,
+    on_done: Callable[[str, Any, Failure | None], None] | None = None,
+) -> Report:
+    """One :meth:`Executor.run` on a fresh executor (see :class:`Executor` for the arguments)."""
+    with Executor(executor, workers, address, retries) as runner:
+        return runner.run(cells, store, on_done)
+
+
+def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_done) -> None:
+    """Keeps at most ``backend.capacity`` cells in flight (so a crashed process takes only
+    running cells with it), stores results as they arrive and retries failures."""
+    queue, attempts, in_flight = deque(todo), Counter(), {}
+    while queue or in_flight:
+        while queue and len(in_flight) < backend.capacity:
+            cell = queue.popleft()
+            attempts[cell.id] += 1
+            in_flight[backend.submit(cell)] = cell
+        for handle, (status, payload, seconds) in backend.wait_some(list(in_flight)):
+            cell = in_flight.pop(handle)
+            if status == "ok":
+                result = json.loads(payload)
+                if store:
+                    store.save(cell.id, result, seconds, attempts[cell.id])
+                report.results[cell.id], report.seconds[cell.id] = result, seconds
+                report.computed.append(cell.id)
+                if on_done:
+                    on_done(cell.id, result, None)
+            elif attempts[cell.id] <= retries:
+                queue.append(cell)  # deterministic cells fail again; a lost process may not
+            else:
+                lines = payload.strip().splitlines() or ["unknown error"]
+                failure = Failure(cell.id, lines[-1], payload, attempts[cell.id])
+                report.failures[cell.id] = failure
+                if on_done:
+                    on_done(cell.id, None, failure)
+
+
+class _Serial:
+    """Runs each cell in this process when it is waited for."""
+
+    capacity = 1
+
+    def __init__(self, workers: int, address: str | None) -> None:
+        self.cells: dict[int, Cell] = {}
+
+    def submit(self, cell: Cell) -> int:
+        self.cells[id(cell)] = cell
+        return id(cell)
+
+    def wait_some(self, handles: list) -> list:
+        cell = self.cells.pop(handles[0])
+        return [(handles[0], call_cell(cell.fn, cell.args))]
+
+    def close(self) -> None:
+        pass
+
+
+class _Local:
+    """A pool of ``workers`` spawned processes; rebuilt if a process dies."""
+
+    def __init__(self, workers: int, address: str | None) -> None:
+        self.capacity = workers
+        self.pool: ProcessPoolExecutor | None = None
+
+    def submit(self, cell: Cell) -> Future:
+        if self.pool is None:
+            self.pool = ProcessPoolExecutor(self.capacity, mp_context=multiprocessing.get_context("spawn"))
+        return self.pool.submit(call_cell, cell.fn, cell.args)
+
+    def wait_some(self, handles: list) -> list:
+        done, _ = wait(handles, return_when=FIRST_COMPLETED)
+        out = []
+        for future in done:
+            try:
+                out.append((future, future.result()))
+            except BrokenProcessPool as exc:  # a worker died (killed, out of memory, segfault)
+                out.append((future, ("error", f"{type(exc).__name__}: a worker process died: {exc}", 0.0)))
+                self._discard()
+        return out
+
+    def _discard(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = None
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
+
+
+class _Ray:
+    """Ray tasks of one CPU each; starts a local cluster unless given an ``address``."""
+
+    def __init__(self, workers: int, address: str | None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise ExecutorError(RAY_MISSING) from None
+        self.ray, self.started = ray, False
+        if not ray.is_initialized():
+            try:
+                if address:
+                    ray.init(address=address, log_to_driver=False)
+                else:
+                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                raise ExecutorError(
+                    f"cannot start or reach Ray (address {address or 'local'}): {exc}"
+                ) from None
+            self.started = True
+        self.capacity = max(1, int(ray.cluster_resources().get("CPU", workers)))
+        # Our own retries (the same for every executor), so Ray's are off.
+        self.remote = ray.remote(num_cpus=1, max_retries=0)(call_cell)
+
+    def submit(self, cell: Cell):
+        return self.remote.remote(cell.fn, cell.args)
+
+    def wait_some(self, handles: list) -> list:
+        done, _ = self.ray.wait(handles, num_returns=1)
+        out = []
+        for ref in done:
+            try:
+                out.append((ref, self.ray.get(ref)))
+            except self.ray.exceptions.RayError as exc:  # a worker or node was lost
+                out.append((ref, ("error", f"{type(exc).__name__}: {exc}", 0.0)))
+        return out
+
+    def close(self) -> None:
+        if self.started:
+            self.ray.shutdown()

@@ -1,0 +1,403 @@
+"""Experiment specifications: the only module that reads experiment files (``tasks/table1.toml``, ...).
+
+An experiment file is TOML. ``kind = "compare"`` (the paper's Table I protocol,
+``nirl-mj compare``) or ``kind = "sweep"`` (Fig. 6, ``nirl-mj sweep``) says what
+runs it; every other key is documented in docs/EXPERIMENTS.md. An unknown key,
+a wrong type or a value out of range raises :class:`ExperimentError` naming the
+file, the key and what is accepted, as task files do (``nirl_mj.spec``).
+
+A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
+NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
+variant of ``NirlConfig``), behaviour cloning (``"bc"``), or a reference policy
+(``"forward"``, ``"rule"``). The built-in ones are :data:`BUILTIN_METHODS`;
+``[method.NAME]`` tables add others or change built-in ones.
+
+``[quick]`` holds values of the same keys that ``--quick`` uses instead (tables
+merged key by key): the smoke version of the same experiment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from nirl_mj import spec as specs
+from nirl_mj.spec import SpecError
+
+KINDS = ("compare", "sweep")
+METHOD_KINDS = ("irl", "bc", "forward", "rule")
+EXPERTS = ("sensor", "planner", "rule")
+
+COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
+               "method", "demos", "config", "quick")  # fmt: skip
+KEYS = {
+    "compare": (*COMMON_KEYS, "paper", "strip"),
+    "sweep": (*COMMON_KEYS, "obstacles", "speeds"),
+}
+DEMO_KEYS = ("expert", "episodes")
+METHOD_KEYS = ("kind", "variant", "method", "config")
+PAPER_KEYS = ("avg", "best", "worst")
+STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
+SET_SECTIONS = ("arena", "robot", "sensing", "control")
+_NAME = re.compile(r"^[A-Za-z0-9_-]+$")  # method names become file and cell names
+
+
+class ExperimentError(SpecError):
+    """An experiment file or value is invalid; the message names the key and what is accepted."""
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One row of the results. ``variant``/``method``/``config`` matter for ``kind = "irl"`` only:
+    ``NirlConfig.named(variant, method=method, **experiment config, **config)``."""
+
+    name: str
+    kind: str
+    variant: str = "default"
+    method: str = "nirl"
+    config: dict = field(default_factory=dict)
+
+    @property
+    def trains(self) -> bool:
+        """Whether this method has training runs on disk (``OUT/runs/NAME/SEED``)."""
+        return self.kind == "irl"
+
+    def nirl_config(self, shared: dict):
+        """The learner's configuration: the variant's, then the experiment's ``[config]``, then ours."""
+        from nirl_mj.learn.nirl import NirlConfig
+
+        return NirlConfig.named(self.variant, **{**shared, **self.config, "method": self.method})
+
+
+BUILTIN_METHODS = {
+    "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
+    "NIRL-paper": MethodSpec("NIRL-paper", "irl", "paper", "nirl"),
+    "AL": MethodSpec("AL", "irl", "default", "al"),
+    "RE": MethodSpec("RE", "irl", "default", "re"),
+    "SCIRL": MethodSpec("SCIRL", "irl", "default", "scirl"),
+    "BC": MethodSpec("BC", "bc"),
+    "forward": MethodSpec("forward", "forward"),
+    "rule": MethodSpec("rule", "rule"),
+}
+"""The methods an experiment may list without defining them."""
+
+
+@dataclass(frozen=True)
+class StripSpec:
+    """The Fig. 8 strip: ``snapshots`` frames of ``method``'s first run on its first test arena."""
+
+    method: str
+    snapshots: int = 5
+    camera: str = "top"
+    width: int = 480
+    height: int = 360
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A resolved experiment: tasks loaded, methods looked up, ``[quick]`` applied if asked."""
+
+    kind: str
+    name: str
+    source: str
+    description: str
+    task: specs.TaskSpec  # demonstrations and training
+    test_task: specs.TaskSpec  # the tests (the sweep's cells change its obstacles and speed)
+    seed: int  # demonstrations; run r trains with seed + r and is tested on arenas of seed + r
+    runs: int
+    tests: int
+    methods: tuple[MethodSpec, ...]
+    expert: str
+    demos: int
+    config: dict  # NirlConfig changes for every "irl" method
+    paper: dict  # method -> {"avg", "best", "worst"} in percent
+    strip: StripSpec | None
+    obstacles: tuple[int, ...]
+    speeds: tuple[float, ...]
+    quick: bool
+
+    def identity(self) -> dict:
+        """Everything that changes a cell's result, as JSON: an output directory holds one identity."""
+        data = {
+            "kind": self.kind,
+            "task": self.task.to_dict(),
+            "test_task": self.test_task.to_dict(),
+            "seed": self.seed,
+            "runs": self.runs,
+            "tests": self.tests,
+            "methods": [dataclasses.asdict(m) for m in self.methods],
+            "expert": self.expert,
+            "demos": self.demos,
+            "config": self.config,
+            # The learners' resolved settings too: a training run resumes only with its own
+            # (nirl_mj.learn.train), so a change of defaults in the code is refused here, up front.
+            "learners": {m.name: m.nirl_config(self.config).to_dict() for m in self.methods if m.trains},
+            "obstacles": list(self.obstacles),
+            "speeds": list(self.speeds),
+        }
+        return json.loads(json.dumps(data))
+
+    def cell_task(self, obstacles: int, speed: float) -> specs.TaskSpec:
+        """The test task of a sweep cell: ``obstacles`` static obstacles, ``speed`` m/s."""
+        return specs.replace(
+            self.test_task, arena={"static_obstacles": obstacles}, control={"speed": float(speed)}
+        )
+
+
+def load_experiment(path: str | Path, quick: bool = False) -> Experiment:
+    """Reads and validates an experiment file (a path, or a name under ``tasks/``)."""
+    path = Path(path)
+    if path.suffix != ".toml" and not path.is_file():
+        path = specs.TASKS_DIR / f"{path}.toml"
+    if not path.is_file():
+        raise ExperimentError(f"experiment file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ExperimentError(f"{path}: not valid TOML: {exc}") from None
+    return from_dict(data, str(path), path.parent, quick)
+
+
+def from_dict(
+    data: dict, source: str = "<dict>", base: Path | None = None, quick: bool = False
+) -> Experiment:
+    """Validates a plain dict (as read from TOML); relative task paths are taken from ``base``."""
+    kind = data.get("kind")
+    if kind not in KINDS:
+        raise ExperimentError(f"{source}: kind = {kind!r}: accepted: {', '.join(KINDS)}")
+    _known(data, KEYS[kind], source, f"(kind {kind})")
+    overrides = _table(data.get("quick", {}), f"{source}: quick")
+    _known(overrides, [k for k in KEYS[kind] if k not in ("kind", "quick")], f"{source}: quick", "")
+    if quick:
+        data = _merge(data, overrides)
+    quick_keys = data.get("quick", {}) if quick else {}
+
+    def where(key: str) -> str:
+        """Where a key's value came from, for error messages."""
+        return f"{source}: {'quick.' if key in quick_keys else ''}{key}"
+
+    base = base or Path(".")
+
+    overrides = _table(data.get("set", {}), where("set"))
+    _known(overrides, SET_SECTIONS, where("set"), "")
+    task = _task(data.get("task", "navigate"), base, overrides, where("task"))
+    test_task = _task(
+        data.get("test_task", data.get("task", "navigate")), base, overrides, where("test_task")
+    )
+
+    demos = _table(data.get("demos", {}), where("demos"))
+    _known(demos, DEMO_KEYS, where("demos"), "")
+    expert = _choice(demos.get("expert", "sensor"), EXPERTS, f"{where('demos')}.expert")
+    config = _nirl_changes(_table(data.get("config", {}), where("config")), where("config"))
+    methods = _methods(data, config, where)
+
+    strip = None
+    if "strip" in data:
+        table = _table(data["strip"], where("strip"))
+        _known(table, STRIP_KEYS, where("strip"), "")
+        strip = StripSpec(
+            method=_member(table.get("method"), [m.name for m in methods], f"{where('strip')}.method"),
+            snapshots=_int(table.get("snapshots", 5), f"{where('strip')}.snapshots", 1),
+            camera=_str(table.get("camera", "top"), f"{where('strip')}.camera"),
+            width=_int(table.get("width", 480), f"{where('strip')}.width", 16),
+            height=_int(table.get("height", 360), f"{where('strip')}.height", 16),
+        )
+    experiment = Experiment(
+        kind=kind,
+        name=Path(source).stem,
+        source=source,
+        description=_str(data.get("description", ""), where("description")),
+        task=task,
+        test_task=test_task,
+        seed=_int(data.get("seed", 0), where("seed"), 0),
+        runs=_int(data.get("runs", 1), where("runs"), 1),
+        tests=_int(data.get("tests", 100), where("tests"), 1),
+        methods=methods,
+        expert=expert,
+        demos=_int(demos.get("episodes", 30), f"{where('demos')}.episodes", 1),
+        config=config,
+        paper=_paper(data.get("paper", {}), methods, where("paper")),
+        strip=strip,
+        obstacles=tuple(_int(v, f"{where('obstacles')}[{i}]", 0)
+                        for i, v in enumerate(_list(data.get("obstacles", []), where("obstacles")))),
+        speeds=tuple(_number(v, f"{where('speeds')}[{i}]")
+                     for i, v in enumerate(_list(data.get("speeds", []), where("speeds")))),
+        quick=quick,
+    )  # fmt: skip
+    if kind == "sweep":
+        if not experiment.obstacles or not experiment.speeds:
+            raise ExperimentError(f"{source}: a sweep needs non-empty obstacles and speeds lists")
+        for n in experiment.obstacles:
+            for v in experiment.speeds:
+                try:
+                    experiment.cell_task(n, v)
+                except SpecError as exc:
+                    raise ExperimentError(f"{source}: cell ({n} obstacles, {v} m/s): {exc}") from None
+    return experiment
+
+
+def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
+    defined = _table(data.get("method", {}), where("method"))
+    names = _list(data.get("methods", ["NIRL"]), where("methods"))
+    if not names:
+        raise ExperimentError(f"{where('methods')}: list at least one method")
+    out = []
+    for name in names:
+        if not isinstance(name, str) or not _NAME.match(name):
+            raise ExperimentError(f"{where('methods')}: {name!r}: a name of letters, digits, _ and -")
+        if name not in defined and name not in BUILTIN_METHODS:
+            raise ExperimentError(
+                f"{where('methods')}: unknown method {name!r}; built in: {', '.join(BUILTIN_METHODS)}, "
+                "or define it in a [method.NAME] table"
+            )
+        out.append(_method(name, defined.get(name), config, f"{where('method')}.{name}"))
+    if len(set(names)) != len(names):
+        raise ExperimentError(f"{where('methods')}: a method is listed twice: {names}")
+    unused = sorted(set(defined) - set(names))
+    if unused:
+        raise ExperimentError(f"{where('method')}: {', '.join(unused)} defined but not in methods = {names}")
+    return tuple(out)
+
+
+def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
+    from nirl_mj.learn.methods import REWARD_STEPS
+    from nirl_mj.learn.nirl import VARIANTS
+
+    base = BUILTIN_METHODS.get(name)
+    if table is None:
+        method = base
+    else:
+        table = _table(table, where)
+        _known(table, METHOD_KEYS, where, "")
+        default = base or MethodSpec(name, "irl")
+        kind = _choice(table.get("kind", default.kind), METHOD_KINDS, f"{where}.kind")
+        changes = _nirl_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")
+        if kind != "irl" and (changes or "variant" in table or "method" in table):
+            raise ExperimentError(f'{where}: variant, method and config apply to kind = "irl" only')
+        method = MethodSpec(
+            name,
+            kind,
+            _choice(table.get("variant", default.variant), VARIANTS, f"{where}.variant"),
+            _choice(table.get("method", default.method), tuple(REWARD_STEPS), f"{where}.method"),
+            changes,
+        )
+    if method.trains:
+        try:
+            method.nirl_config(config)
+        except (TypeError, ValueError) as exc:
+            raise ExperimentError(f"{where}: {exc}") from None
+    return method
+
+
+def _nirl_changes(table: dict, where: str) -> dict:
+    """NirlConfig field changes, each checked against the field's default type."""
+    from nirl_mj.learn.nirl import NirlConfig
+
+    defaults = NirlConfig()
+    fields = [f.name for f in dataclasses.fields(NirlConfig) if f.name not in ("variant", "method")]
+    _known(table, fields, where, "")
+    out = {}
+    for key, value in table.items():
+        kind = type(getattr(defaults, key))
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not kind:
+            raise ExperimentError(f"{where}.{key} = {value!r}: expected a {kind.__name__}")
+        out[key] = value
+    return out
+
+
+def _paper(table: Any, methods: tuple[MethodSpec, ...], where: str) -> dict:
+    table = _table(table, where)
+    names = [m.name for m in methods]
+    out = {}
+    for name, row in table.items():
+        _member(name, names, f"{where}.{name}")
+        row = _table(row, f"{where}.{name}")
+        _known(row, PAPER_KEYS, f"{where}.{name}", "")
+        out[name] = {k: _number(row[k], f"{where}.{name}.{k}", 0.0, 100.0) for k in PAPER_KEYS if k in row}
+    return out
+
+
+def _task(value: Any, base: Path, overrides: dict, where: str) -> specs.TaskSpec:
+    name = _str(value, where)
+    path = Path(name)
+    if path.suffix == ".toml" and not path.is_absolute() and (base / path).is_file():
+        name = str(base / path)
+    try:
+        task = specs.load_task(name)
+        return specs.replace(task, **overrides) if overrides else task
+    except SpecError as exc:
+        raise ExperimentError(f"{where}: {exc}") from None
+
+
+def _merge(data: dict, changes: dict) -> dict:
+    """``data`` with ``changes`` applied, tables merged key by key."""
+    out = dict(data)
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _known(table: dict, accepted, where: str, note: str) -> None:
+    unknown = sorted(set(table) - set(accepted))
+    if unknown:
+        raise ExperimentError(
+            f"{where}: unknown key(s) {', '.join(unknown)}{' ' + note if note else ''}; "
+            f"accepted: {', '.join(accepted)}"
+        )
+
+
+def _table(value: Any, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ExperimentError(f"{where}: expected a table, got {value!r}")
+    return value
+
+
+def _list(value: Any, where: str) -> list:
+    if not isinstance(value, list):
+        raise ExperimentError(f"{where} = {value!r}: expected a list")
+    return value
+
+
+def _str(value: Any, where: str) -> str:
+    if not isinstance(value, str):
+        raise ExperimentError(f"{where} = {value!r}: expected a string")
+    return value
+
+
+def _choice(value: Any, accepted, where: str) -> str:
+    if value not in accepted:
+        raise ExperimentError(f"{where} = {value!r}: accepted: {', '.join(accepted)}")
+    return value
+
+
+def _member(value: Any, accepted: list[str], where: str) -> str:
+    if value not in accepted:
+        raise ExperimentError(f"{where}: {value!r} is not a method of this experiment: {', '.join(accepted)}")
+    return value
+
+
+def _int(value: Any, where: str, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ExperimentError(f"{where} = {value!r}: expected a whole number")
+    if value < low:
+        raise ExperimentError(f"{where} = {value}: must be >= {low}")
+    return value
+
+
+def _number(value: Any, where: str, low: float = 0.0, high: float = math.inf) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ExperimentError(f"{where} = {value!r}: expected a finite number")
+    if not low <= value <= high:
+        raise ExperimentError(f"{where} = {value}: must be in [{low}, {high}]")
+    return float(value)

@@ -1,0 +1,260 @@
+"""The protocol every experiment shares: output directory, demonstrations, seeds, runs, one evaluation.
+
+An experiment's output directory OUT holds ``experiment.json`` (the identity of
+what it computes: :meth:`nirl_mj.experiment.Experiment.identity`), ``demos.npz``
+(one set of demonstrations for every run and method), ``runs/METHOD/SEED/``
+(training runs, ``nirl-mj train``'s layout, resumable from their checkpoints)
+and ``cells/`` (finished cells, :class:`nirl_mj.executors.CellStore`).
+
+Seeds. Run r of every method trains with seed ``experiment.seed + r`` on the same
+demonstrations and is tested on the same arenas: ``held_out_seeds(seed + r,
+tests, seen)``, where ``seen`` holds the demonstrations' arenas and the training
+and validation arenas every trainable method of run r may use. So the methods of
+a run are compared on identical arenas (paired), the test arenas of a run are
+disjoint from everything its learners saw (checked again against each run's
+record), and a cell's result depends on nothing but its own arguments.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from nirl_mj.experiment import Experiment, ExperimentError, MethodSpec
+from nirl_mj.spec import TaskSpec
+
+EXPERIMENT_FILE = "experiment.json"
+
+
+def open_output(out: str | Path, experiment: Experiment) -> Path:
+    """Creates OUT for ``experiment``, or re-opens it to resume the same experiment.
+
+    Refuses a non-empty directory of another experiment (naming the keys that differ)
+    or of anything else. Returns OUT as an absolute path: cells may run in another
+    working directory (Ray workers do)."""
+    out = Path(out).resolve()
+    marker = out / EXPERIMENT_FILE
+    identity = experiment.identity()
+    if marker.is_file():
+        try:
+            saved = json.loads(marker.read_text())
+        except json.JSONDecodeError as exc:
+            raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
+        differ = sorted(k for k in {*saved, *identity} if saved.get(k) != identity.get(k))
+        if differ:
+            raise ExperimentError(
+                f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
+                "or rerun it with the same spec and flags to resume it"
+            )
+        return out
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ExperimentError(f"{out} exists and holds no nirl-mj experiment; choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    from nirl_mj.atomic import write_text
+
+    write_text(marker, json.dumps(identity, indent=1))
+    return out
+
+
+def ensure_demos(out: Path, experiment: Experiment, workers: int, log: Callable[[str], None]) -> Path:
+    """OUT/demos.npz: ``experiment.demos`` episodes by its expert on its training task (once)."""
+    from nirl_mj.demos import ExpertConfig, collect
+    from nirl_mj.trajectory import save_dataset
+
+    path = out / "demos.npz"
+    if path.is_file():
+        log(f"demonstrations: re-using {path}")
+        return path
+    log(f"demonstrations: {experiment.demos} episodes by the {experiment.expert} expert")
+    trajectories = collect(experiment.task, ExpertConfig(experiment.expert, seed=experiment.seed),
+                           experiment.demos, experiment.seed, workers)  # fmt: skip
+    save_dataset(path, trajectories)
+    return path
+
+
+def run_seed(experiment: Experiment, run: int) -> int:
+    """The training seed of run ``run`` (also the seed of its test arenas)."""
+    return experiment.seed + run
+
+
+def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> list[int]:
+    """The test arenas of run ``run``, shared by every method: none was seen by any learner of it."""
+    from nirl_mj.evaluate import domain_seeds, held_out_seeds
+    from nirl_mj.learn.train import validation_seeds
+
+    seed = run_seed(experiment, run)
+    seen = set(demo_seeds)
+    for method in experiment.methods:
+        if method.trains:
+            config = method.nirl_config(experiment.config)
+            seen |= set(validation_seeds(config, seed))
+            seen |= set(domain_seeds("train", seed, config.episodes * config.trajectories_per_episode))
+    return held_out_seeds(seed, experiment.tests, seen)
+
+
+@dataclass(frozen=True)
+class RunJob:
+    """Method ``method``'s run ``run``: what it trains on, where, and the arenas it is tested on.
+
+    ``config``: the resolved ``NirlConfig`` fields (trainable methods); ``run_dir`` an absolute
+    path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the run's test arenas."""
+
+    method: MethodSpec
+    run: int
+    seed: int
+    task: TaskSpec
+    demos_path: str
+    run_dir: str
+    config: dict
+    test_seeds: tuple[int, ...]
+
+
+def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[str, int], RunJob]:
+    """Every (method, run) of the experiment, by (method name, run index)."""
+    from nirl_mj.trajectory import load_dataset
+
+    demo_seeds = {t.arena_seed for t in load_dataset(demos_path)}
+    jobs = {}
+    for run in range(experiment.runs):
+        seeds = tuple(run_test_seeds(experiment, run, demo_seeds))
+        seed = run_seed(experiment, run)
+        for method in experiment.methods:
+            config = method.nirl_config(experiment.config).to_dict() if method.trains else {}
+            run_dir = out / "runs" / method.name / str(seed)
+            jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(demos_path), str(run_dir),
+                                            config, seeds)  # fmt: skip
+    return jobs
+
+
+def ensure_trained(job: RunJob) -> dict:
+    """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
+    record. A directory killed before its first checkpoint is started afresh."""
+    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.learn.train import CHECKPOINT_FILE, POLICY_FILE, read_run, train
+
+    run_dir = Path(job.run_dir)
+    if (run_dir / POLICY_FILE).is_file():
+        return read_run(run_dir)
+    resume = (run_dir / CHECKPOINT_FILE).is_file()
+    if not resume and run_dir.exists():
+        shutil.rmtree(run_dir)  # ours, and holds nothing yet: run.json and an empty metrics file
+    return train(run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, resume=resume)
+
+
+def policy_of(job: RunJob) -> Callable:
+    """The job's greedy policy on phi(s), training (or resuming) it first if it trains."""
+    kind = job.method.kind
+    if kind == "irl":
+        from nirl_mj.learn.train import load_policy
+
+        ensure_trained(job)
+        policy, record = load_policy(job.run_dir)
+        seen = {*record["demo_seeds"], *record["validation_seeds"], *record["train_seeds"]}
+        if seen & set(job.test_seeds):
+            raise RuntimeError(
+                f"{job.run_dir}: test arenas seen in training: {sorted(seen & set(job.test_seeds))}"
+            )
+        return policy
+    if kind == "bc":
+        from nirl_mj.learn.bc import behaviour_cloning
+        from nirl_mj.trajectory import load_dataset
+
+        return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed)
+    from nirl_mj.policies import always_forward, rule_policy
+
+    return {"forward": always_forward, "rule": rule_policy}[kind]
+
+
+def evaluate_policy(policy: Callable, task: TaskSpec, seeds: tuple[int, ...], name: str) -> dict:
+    """Success, collision, timeout and physics-error rates, SPL, mean path length (m) and test count
+    of ``policy`` on the arenas ``seeds`` of ``task`` (greedy, one episode each)."""
+    from nirl_mj.evaluate import evaluate
+    from nirl_mj.task import make_env
+
+    metrics, _ = evaluate(make_env(task), policy, seeds, name)
+    return metrics
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where cells run (``nirl_mj.executors.Executor``): executor name, workers, Ray address,
+    further attempts of a failing cell."""
+
+    executor: str = "local"
+    workers: int | None = None
+    address: str | None = None
+    retries: int = 2
+    report_only: bool = False  # run nothing: report the cells already finished (a partial table)
+
+    def start(self, out: Path) -> CellRunner:
+        """A runner storing finished cells in OUT/cells; use it as a context manager."""
+        from nirl_mj.executors import CellStore, Executor
+
+        return CellRunner(
+            Executor(self.executor, self.workers, self.address, self.retries),
+            CellStore(out / "cells"),
+            self.report_only,
+        )
+
+    def check_output(self, out: str | Path) -> None:
+        """With ``report_only``, OUT must hold a started experiment: there is nothing to report else."""
+        if self.report_only and not (Path(out) / EXPERIMENT_FILE).is_file():
+            raise ExperimentError(
+                f"--report: {out} holds no started experiment; run it first (without --report)"
+            )
+
+
+@dataclass
+class CellRunner:
+    """An executor and the experiment's cell store."""
+
+    executor: Any
+    store: Any
+    report_only: bool = False
+    unfinished: int = 0  # cells neither finished nor failed (report_only)
+
+    def run(self, cells: list, on_done: Callable | None = None):
+        """Runs the cells not stored yet; returns the executor's report (with ``report_only``: the
+        stored cells only, nothing run)."""
+        if not self.report_only:
+            return self.executor.run(cells, self.store, on_done)
+        from nirl_mj.executors import Report
+
+        report = Report()
+        report.results = {c.id: r for c in cells if (r := self.store.load(c.id)) is not None}
+        report.reused = list(report.results)
+        self.unfinished += len(cells) - len(report.results)
+        return report
+
+    def finished(self, cells: list) -> int:
+        """How many of ``cells`` are already stored (for a progress bar's start)."""
+        return sum(self.store.load(c.id) is not None for c in cells)
+
+    def __enter__(self) -> CellRunner:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.executor.close()
+
+
+def failure_rows(failures: dict) -> list[dict]:
+    """Failed cells as JSON rows (id, last error line, attempts, traceback)."""
+    return [{"id": f.id, "error": f.error, "attempts": f.attempts, "traceback": f.traceback}
+            for f in failures.values()]  # fmt: skip
+
+
+def failed_section(summary: dict) -> str:
+    """The Markdown list of failed cells and the count of unfinished ones (empty if none)."""
+    text = ""
+    if summary.get("unfinished"):
+        text += (f"\n**Partial report** (`--report`): {summary['unfinished']} cells are not finished yet; "
+                 "each row counts its finished runs only.\n")  # fmt: skip
+    if summary["failures"]:
+        rows = "".join(f"\n- `{f['id']}` failed after {f['attempts']} attempt(s): {f['error']}"
+                       for f in summary["failures"])  # fmt: skip
+        text += f"\nFailed cells (rerun the same command to try them again):{rows}\n"
+    return text

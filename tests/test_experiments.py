@@ -1,0 +1,411 @@
+"""Experiments (Table I, Fig. 6, Fig. 8): specs, executors, identical results, resume, retries, outputs."""
+
+import dataclasses
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from nirl_mj import protocol
+from nirl_mj.cli import main
+from nirl_mj.executors import Cell, CellStore, ExecutorError, run_cells
+from nirl_mj.experiment import (
+    BUILTIN_METHODS,
+    DEMO_KEYS,
+    KEYS,
+    METHOD_KEYS,
+    PAPER_KEYS,
+    STRIP_KEYS,
+    ExperimentError,
+    from_dict,
+    load_experiment,
+)
+from nirl_mj.stats import summarise_runs, t_interval, wilson
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A 30 m arena with 3 obstacles on the planar drive: episodes of ~30 decisions; NIRL 1-2 iterations
+# of 2 rollouts. Small enough for seconds per cell, big enough that the policies differ.
+TINY = """
+[set.arena]
+size = [30.0, 30.0]
+start = [5.0, 5.0]
+target = [25.0, 25.0]
+static_obstacles = 3
+[set.robot]
+drive = "planar"
+[demos]
+episodes = 2
+[config]
+episodes = 1
+trajectories_per_episode = 2
+validation_arenas = 2
+"""
+SWEEP = """kind = "sweep"
+runs = 2
+tests = 2
+methods = ["NIRL", "rule"]
+obstacles = [3]
+speeds = [1.0, 2.0]
+"""
+TABLE1_ROWS = ["NIRL", "NIRL-paper", "AL", "RE", "SCIRL", "BC", "forward", "rule"]
+
+
+def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(head + TINY)
+    return path
+
+
+# -- specs ------------------------------------------------------------------------------------------
+
+
+def test_shipped_experiments_load_full_and_quick():
+    table1 = load_experiment(ROOT / "tasks" / "table1.toml")
+    assert (table1.kind, table1.runs, table1.tests) == ("compare", 25, 100)
+    assert (table1.demos, table1.expert) == (30, "sensor")
+    assert [m.name for m in table1.methods] == TABLE1_ROWS
+    assert (table1.task.arena.static_obstacles, table1.task.control.speed) == (20, 2.0)
+    paper = {name: tuple(row[k] for k in ("avg", "best", "worst")) for name, row in table1.paper.items()}
+    assert paper == {"NIRL": (83, 94, 69), "NIRL-paper": (83, 94, 69), "AL": (66, 82, 43), "RE": (78, 87, 61),
+                     "SCIRL": (79, 88, 60)}  # fmt: skip
+    quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
+    assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
+    assert quick.methods[1].nirl_config(quick.config).variant == "paper"
+    fig6 = load_experiment(ROOT / "tasks" / "fig6.toml")
+    assert (fig6.kind, fig6.obstacles, fig6.speeds) == ("sweep", (5, 10, 20, 30, 40, 50), (1.0, 2.0, 3.0))
+    corner = fig6.cell_task(50, 3.0)
+    assert (corner.arena.static_obstacles, corner.control.speed, fig6.tests) == (50, 3.0, 50)
+    fig8 = load_experiment(ROOT / "tasks" / "fig8.toml")
+    assert (fig8.task.arena.moving_obstacles, fig8.test_task.arena.moving_obstacles) == (0, 10)
+    assert fig8.strip.method == "NIRL"
+    assert table1.identity() != quick.identity()
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"kind": None}, "kind = None: accepted: compare, sweep"),
+        ({"run": 3}, "unknown key(s) run (kind compare); accepted: kind, description"),
+        ({"obstacles": [5]}, "unknown key(s) obstacles (kind compare)"),
+        ({"runs": 0}, "runs = 0: must be >= 1"),
+        ({"tests": 2.5}, "tests = 2.5: expected a whole number"),
+        ({"methods": ["NIRL", "GAIL"]}, "unknown method 'GAIL'; built in: NIRL, NIRL-paper"),
+        ({"methods": "NIRL"}, "methods = 'NIRL': expected a list"),
+        ({"config": {"episode": 3}}, "config: unknown key(s) episode; accepted: episodes"),
+        ({"config": {"episodes": "3"}}, "config.episodes = '3': expected a int"),
+        ({"demos": {"expert": "human"}}, "demos.expert = 'human': accepted: sensor, planner"),
+        ({"set": {"arena": {"static_obstacles": -1}}}, "arena.static_obstacles = -1"),
+        ({"set": {"physics": {}}}, "set: unknown key(s) physics; accepted: arena, robot"),
+        ({"task": "no-such-task"}, "task: unknown task 'no-such-task'"),
+        ({"paper": {"AL": {"avg": 66}}}, "paper.AL: 'AL' is not a method of this experiment"),
+        ({"paper": {"NIRL": {"mean": 1}}}, "paper.NIRL: unknown key(s) mean; accepted: avg"),
+        ({"strip": {"method": "BC"}}, "strip.method: 'BC' is not a method"),
+        ({"methods": ["Mine"], "method": {"Mine": {"kind": "irl", "method": "gail"}}},
+         "method.Mine.method = 'gail': accepted: nirl"),
+        ({"methods": ["Mine"], "method": {"Mine": {"kind": "bc", "config": {"eta": 1.0}}}},
+         'method.Mine: variant, method and config apply to kind = "irl" only'),
+        ({"method": {"Mine": {"kind": "bc"}}}, "method: Mine defined but not in methods"),
+        ({"quick": {"kind": "sweep"}}, "quick: unknown key(s) kind; accepted: description"),
+        ({"kind": "sweep", "obstacles": [5], "speeds": [9.0]}, "cell (5 obstacles, 9.0 m/s): "),
+        ({"kind": "sweep", "speeds": [1.0]}, "a sweep needs non-empty obstacles and speeds"),
+    ],
+)  # fmt: skip
+def test_spec_errors_name_the_key_and_what_is_accepted(data, message):
+    with pytest.raises(ExperimentError) as err:
+        from_dict({"kind": "compare", **data}, "e.toml")
+    assert message in str(err.value)
+    assert str(err.value).startswith("e.toml")
+
+
+def test_quick_errors_say_they_come_from_the_quick_table():
+    with pytest.raises(ExperimentError, match=r"quick\.runs = 0: must be >= 1"):
+        from_dict({"kind": "compare", "quick": {"runs": 0}}, "e.toml", quick=True)
+    from_dict({"kind": "compare", "quick": {"runs": 0}}, "e.toml")  # not used without --quick
+
+
+def test_own_methods_change_the_learner():
+    e = from_dict({"kind": "compare", "methods": ["NIRL", "low-margin", "BC"], "config": {"episodes": 7},
+                   "method": {"low-margin": {"variant": "default", "config": {"margin_loss": 0.05}},
+                              "BC": {"kind": "bc"}}})  # fmt: skip
+    config = e.methods[1].nirl_config(e.config)
+    assert (config.margin_loss, config.episodes, config.method) == (0.05, 7, "nirl")
+    assert e.methods[0].nirl_config(e.config).margin_loss == 0.1 and e.methods[2] == BUILTIN_METHODS["BC"]
+
+
+def test_every_experiment_key_is_documented_in_docs_experiments_md():
+    text = (ROOT / "docs" / "EXPERIMENTS.md").read_text()
+    keys = {*KEYS["compare"], *KEYS["sweep"]}
+    for key in keys:
+        assert f"| `{key}` |" in text, f"top-level key {key} is not documented in docs/EXPERIMENTS.md"
+    for table, names in (("demos", DEMO_KEYS), ("method.NAME", METHOD_KEYS), ("paper.NAME", PAPER_KEYS),
+                         ("strip", STRIP_KEYS)):  # fmt: skip
+        for key in names:
+            assert f"| `{table}.{key}` |" in text, f"{table}.{key} is not documented in docs/EXPERIMENTS.md"
+    for name in BUILTIN_METHODS:
+        assert f"| `{name}` |" in text, f"built-in method {name} is not documented in docs/EXPERIMENTS.md"
+
+
+# -- statistics -------------------------------------------------------------------------------------
+
+
+def test_intervals_match_hand_computation():
+    low, high = t_interval([0.5, 0.6, 0.4])  # mean 0.5, sd 0.1, t(0.975, 2) = 4.3027
+    half = 4.3027 * 0.1 / math.sqrt(3)
+    assert (low, high) == pytest.approx((0.5 - half, 0.5 + half), abs=1e-4)
+    assert t_interval([0.1, 0.9]) == (0.0, 1.0)  # clipped to what a rate can be
+    assert all(math.isnan(v) for v in t_interval([0.5]))
+    assert wilson(0, 10) == pytest.approx((0.0, 0.2775), abs=1e-4)
+    assert wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    rows = [{"success_rate": s, "collision_rate": 1 - s, "timeout_rate": 0.0, "physics_error_rate": 0.0,
+             "spl": s / 2, "tests": 10} for s in (0.6, 0.9, 0.7)]  # fmt: skip
+    s = summarise_runs(rows)
+    summary = (s["avg"], s["best"], s["worst"], s["runs"], s["tests"])
+    assert summary == pytest.approx((0.7333, 0.9, 0.6, 3, 30), abs=1e-4)
+    assert summarise_runs(rows[:1])["ci"] == [None, None]  # standard JSON, no NaN
+
+
+# -- executors --------------------------------------------------------------------------------------
+
+
+def counted_cell(directory: str, name: str, fail_times: int) -> dict:
+    """Records the attempt in ``directory``; raises for the first ``fail_times`` attempts."""
+    attempt = len(list(Path(directory).glob(f"{name}.*"))) + 1
+    Path(directory, f"{name}.{attempt}").touch()
+    if attempt <= fail_times:
+        raise ValueError(f"{name} attempt {attempt} failed on purpose")
+    return {"name": name, "attempt": attempt, "value": 0.1 * attempt}
+
+
+def dying_cell(directory: str) -> dict:
+    """Kills its own process at the first attempt (as the out-of-memory killer would)."""
+    marker = Path(directory, "died")
+    if not marker.exists():
+        marker.touch()
+        os._exit(1)
+    return {"survived": True}
+
+
+@pytest.mark.parametrize("executor", ["serial", "local"])
+def test_failing_cell_is_retried_then_reported_and_never_stored(tmp_path, executor):
+    calls, store = tmp_path / "calls", CellStore(tmp_path / "cells")
+    calls.mkdir()
+    cells = [Cell("flaky", counted_cell, (str(calls), "flaky", 1)),
+             Cell("broken", counted_cell, (str(calls), "broken", 99))]  # fmt: skip
+    seen = []
+    report = run_cells(cells, executor, workers=2, retries=2, store=store,
+                       on_done=lambda i, r, f: seen.append((i, f is None)))  # fmt: skip
+    assert report.results == {"flaky": {"name": "flaky", "attempt": 2, "value": 0.2}}
+    failure = report.failures["broken"]
+    assert failure.attempts == 3 and len(list(calls.glob("broken.*"))) == 3
+    assert failure.error == "ValueError: broken attempt 3 failed on purpose"
+    assert "Traceback" in failure.traceback
+    assert sorted(seen) == [("broken", False), ("flaky", True)]
+    assert json.loads(store.path("flaky").read_text())["attempts"] == 2
+    assert not store.path("broken").exists()  # the next run tries it again
+    again = run_cells(cells, executor, workers=2, retries=0, store=store)
+    assert again.reused == ["flaky"] and list(again.failures) == ["broken"]
+
+
+def test_a_dead_worker_process_is_replaced_and_its_cell_retried(tmp_path):
+    cells = [Cell("dies", dying_cell, (str(tmp_path),)),
+             Cell("fine", counted_cell, (str(tmp_path), "fine", 0))]  # fmt: skip
+    report = run_cells(cells, "local", workers=2, retries=1)
+    assert report.results["dies"] == {"survived": True} and not report.failures
+
+
+def test_missing_ray_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(ExecutorError, match=r"pip install 'nirl-mj\[ray\]'"):
+        run_cells([Cell("x", counted_cell, ("/nonexistent", "x", 0))], "ray", workers=1)
+    with pytest.raises(ExecutorError, match="accepted: serial, local, ray"):
+        run_cells([Cell("x", counted_cell, ("/nonexistent", "x", 0))], "dask")
+
+
+def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
+    e = load_experiment(write_spec(tmp_path, SWEEP.replace("runs = 2", "runs = 1")))
+    e = dataclasses.replace(e, config={**e.config, "episodes": 2})
+    out = protocol.open_output(tmp_path / "out", e)
+    demos = protocol.ensure_demos(out, e, 1, lambda _: None)
+    job = protocol.run_jobs(e, out, demos)["NIRL", 0]
+    reference = dataclasses.replace(job, run_dir=str(tmp_path / "reference"))
+    protocol.ensure_trained(reference)
+
+    class Stop(Exception):
+        pass
+
+    def stop(_):
+        raise Stop
+
+    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.learn.train import train
+
+    with pytest.raises(Stop):  # killed after its first iteration's checkpoint
+        train(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, on_metrics=stop)
+    assert not (Path(job.run_dir) / "policy.npz").exists()
+    policy = Path(job.run_dir) / "policy.npz"
+    protocol.ensure_trained(job)
+    assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
+    # Killed before its first checkpoint: only run.json is there; started afresh.
+    policy.unlink()
+    (Path(job.run_dir) / "checkpoint.npz").unlink()
+    protocol.ensure_trained(job)
+    assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
+
+
+# -- a small sweep on every executor, killed and resumed ---------------------------------------------
+
+
+def sweep_args(spec: Path, out: Path, executor: str, *extra: str) -> list[str]:
+    return ["sweep", "--task", str(spec), "--out", str(out), "--executor", executor, "--workers", "2",
+            "--quiet", *extra]  # fmt: skip
+
+
+def cell_results(out: Path) -> dict:
+    return {p.stem: json.loads(p.read_text())["result"] for p in sorted((out / "cells").glob("*.json"))}
+
+
+@pytest.fixture(scope="module")
+def serial_sweep(tmp_path_factory):
+    """The tiny sweep, serially in this process: the reference every other way must reproduce."""
+    tmp = tmp_path_factory.mktemp("sweep")
+    spec, out = write_spec(tmp, SWEEP), tmp / "serial"
+    assert main(sweep_args(spec, out, "serial", "--json")) == 0
+    return spec, out, cell_results(out)
+
+
+def test_serial_sweep_writes_csv_plot_and_table(serial_sweep, capsys):
+    spec, out, results = serial_sweep
+    assert len(results) == 2 + 2 * 2 * 1 * 2  # 2 trainings; (NIRL, rule) x 2 runs x 1 obstacles x 2 speeds
+    lines = (out / "sweep.csv").read_text().splitlines()
+    assert lines[0].startswith("method,obstacles,speed,runs,failed,tests,success_avg") and len(lines) == 1 + 4
+    assert (out / "sweep.png").stat().st_size > 10_000 and "| rule | 2 |" in (out / "sweep.md").read_text()
+    rule = [r for r in results.values() if r.get("method") == "rule"]
+    assert sum(r["success_rate"] for r in rule) > 0  # the tiny arena is solvable: a test that can fail
+    assert {r["tests"] for r in results.values() if "tests" in r} == {2}
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, executor):
+    if executor == "ray":
+        pytest.importorskip("ray", reason="Ray is optional: pip install 'nirl-mj[ray]' to test it")
+    spec, _, reference = serial_sweep
+    assert main(sweep_args(spec, tmp_path / executor, executor)) == 0
+    assert cell_results(tmp_path / executor) == reference
+
+
+def test_killed_sweep_resumes_without_recomputing_finished_cells(serial_sweep, tmp_path):
+    spec, _, reference = serial_sweep
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "nirl_mj.cli", *sweep_args(spec, out, "serial")]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while len(list((out / "cells").glob("*.json"))) < 4 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert 4 <= len(before) < len(reference), "the sweep was not killed part-way"
+    assert main(sweep_args(spec, out, "serial")) == 0
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert {name: after[name] for name in before} == before  # finished cells were not recomputed
+    assert cell_results(out) == reference
+
+
+# -- compare ----------------------------------------------------------------------------------------
+
+
+def test_compare_quick_prints_the_json_line_and_writes_the_table(tmp_path, capsys):
+    head = f"""kind = "compare"
+runs = 5
+tests = 50
+methods = {json.dumps(TABLE1_ROWS)}
+[quick]
+runs = 2
+tests = 2
+[paper.AL]
+avg = 66
+best = 82
+worst = 43
+"""
+    spec, out = write_spec(tmp_path, head), tmp_path / "out"
+    quick = ["compare", "--task", str(spec), "--quick", "--out", str(out), "--executor", "serial", "--quiet"]
+    code = main([*quick, "--json"])
+    captured = capsys.readouterr()
+    last = json.loads(captured.out.strip().splitlines()[-1])
+    assert code == 0, captured.err
+    assert list(last["methods"]) == TABLE1_ROWS
+    for row in last["methods"].values():
+        assert {"avg", "best", "worst", "collision", "timeout", "ci"} <= set(row) and row["runs"] == 2
+        assert 0.0 <= row["worst"] <= row["avg"] <= row["best"] <= 1.0
+    assert last["failures"] == []
+    assert last["methods"]["rule"]["avg"] > last["methods"]["forward"]["avg"]
+    table = (out / "table.md").read_text()
+    assert "| AL | 2 |" in table and "66 / 82 / 43 |" in table
+    assert (out / "table.csv").read_text().startswith("method,runs,failed,tests,success_avg,success_ci_low")
+    assert (out / "table.png").stat().st_size > 10_000
+    # The runs of one seed share their test arenas and the learners' runs are on disk.
+    assert (out / "runs" / "AL" / "1" / "policy.npz").is_file()
+
+    # Another experiment never writes into this directory; the same one resumes (nothing to do).
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet"]) == 2
+    assert "holds another experiment (it differs in: runs, tests)" in capsys.readouterr().err
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    assert main(["compare", "--task", str(spec), "--quick", "--out", str(tmp_path / "other"), "--quiet"]) == 2
+    assert "holds no nirl-mj experiment" in capsys.readouterr().err
+    assert main(["sweep", "--task", str(spec), "--quick", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    assert "is a compare experiment: run it with `nirl-mj compare`" in capsys.readouterr().err
+    mtimes = {p: p.stat().st_mtime_ns for p in (out / "cells").iterdir()}
+    assert main(quick) == 0
+    assert {p: p.stat().st_mtime_ns for p in (out / "cells").iterdir()} == mtimes
+
+    # --report runs nothing: a partial table from the finished cells, the missing ones counted.
+    (out / "cells" / "AL-run001.json").unlink()
+    assert main([*quick, "--report", "--json"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert last["methods"]["AL"]["runs"] == 1 and last["methods"]["AL"]["failed"] == 1
+    assert not (out / "cells" / "AL-run001.json").exists()
+    table = (out / "table.md").read_text()
+    assert "| AL | 1 (1 missing) |" in table and "Partial report" in table
+    assert (
+        main(
+            ["compare", "--task", str(spec), "--quick", "--report", "--out", str(tmp_path / "new"), "--quiet"]
+        )
+        == 2
+    )
+    assert "holds no started experiment" in capsys.readouterr().err
+
+
+def test_fig8_strip_is_written_from_the_first_run(tmp_path):
+    head = ('kind = "compare"\ntest_task = "dynamic"\nruns = 1\ntests = 1\nmethods = ["rule"]\n'
+            '[strip]\nmethod = "rule"\nsnapshots = 3\nwidth = 64\nheight = 48\n')  # fmt: skip
+    spec, out = write_spec(tmp_path, head), tmp_path / "out"
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]) == 0
+    import imageio.v3 as iio
+
+    strip = iio.imread(out / "strip.png")
+    assert strip.shape[0] == 48 and strip.shape[1] >= 3 * 64  # three frames side by side
+    identity = json.loads((out / "experiment.json").read_text())
+    assert identity["test_task"]["arena"]["moving_obstacles"] == 10
+    assert identity["task"]["arena"]["moving_obstacles"] == 0
+
+
+def threads_cell() -> dict:
+    import torch
+
+    return {"threads": torch.get_num_threads()}
+
+
+def test_a_cell_runs_on_one_torch_thread_and_the_caller_keeps_its_own():
+    import torch
+
+    torch.set_num_threads(2)
+    assert run_cells([Cell("t", threads_cell)], "serial").results == {"t": {"threads": 1}}
+    assert torch.get_num_threads() == 2
