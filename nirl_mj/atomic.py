@@ -35,6 +35,11 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return _write(path, "w", lambda f: f.write(text))
 
 
+def write_figure(path: str | os.PathLike, fig) -> Path:
+    """Saves the matplotlib figure ``fig`` as a PNG at ``path`` atomically."""
+    return _write(path, "wb", lambda f: fig.savefig(f, format="png"))
+
+
 def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> Path:
     """Writes ``arrays`` as an uncompressed NPZ to ``path`` atomically."""
     return _write(path, "wb", lambda f: np.savez(f, **arrays))

@@ -22,7 +22,7 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-from nirl_mj.atomic import write_text
+from nirl_mj.atomic import write_figure, write_text
 from nirl_mj.executors import Cell
 from nirl_mj.experiment import Experiment
 from nirl_mj.protocol import (
@@ -205,7 +205,7 @@ def bar_chart(path: Path, summary: dict, title: str) -> Path:
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8, loc="upper center", ncol=3)
     fig.tight_layout()
-    fig.savefig(path)
+    write_figure(path, fig)
     plt.close(fig)
     return path
 

@@ -32,7 +32,7 @@ import time
 import traceback
 from collections import Counter, deque
 from collections.abc import Callable, Iterable
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, CancelledError, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -263,26 +263,37 @@ class _Local:
     def __init__(self, workers: int, address: str | None) -> None:
         self.capacity = workers
         self.pool: ProcessPoolExecutor | None = None
+        self.owner: dict[Future, ProcessPoolExecutor] = {}  # the pool each running future belongs to
 
     def submit(self, cell: Cell) -> Future:
-        if self.pool is None:
-            self.pool = ProcessPoolExecutor(self.capacity, mp_context=multiprocessing.get_context("spawn"))
-        return self.pool.submit(call_cell, cell.fn, cell.args)
+        for _ in range(2):
+            if self.pool is None:
+                spawn = multiprocessing.get_context("spawn")  # no inherited MuJoCo or OpenGL state
+                self.pool = ProcessPoolExecutor(self.capacity, mp_context=spawn)
+            try:
+                future = self.pool.submit(call_cell, cell.fn, cell.args)
+            except BrokenProcessPool:  # a worker died since the last wait: start a fresh pool
+                self._discard(self.pool)
+                continue
+            self.owner[future] = self.pool
+            return future
+        raise ExecutorError("could not start the local worker processes")
 
     def wait_some(self, handles: list) -> list:
         done, _ = wait(handles, return_when=FIRST_COMPLETED)
         out = []
         for future in done:
+            pool = self.owner.pop(future, None)
             try:
                 out.append((future, future.result()))
-            except BrokenProcessPool as exc:  # a worker died (killed, out of memory, segfault)
+            except (BrokenProcessPool, CancelledError) as exc:  # a worker died (killed, out of memory)
                 out.append((future, ("error", f"{type(exc).__name__}: a worker process died: {exc}", 0.0)))
-                self._discard()
+                self._discard(pool)  # only the broken pool: a replacement started meanwhile stays
         return out
 
-    def _discard(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=False, cancel_futures=True)
+    def _discard(self, pool: ProcessPoolExecutor | None) -> None:
+        if pool is not None and pool is self.pool:
+            pool.shutdown(wait=False, cancel_futures=True)
             self.pool = None
 
     def close(self) -> None:

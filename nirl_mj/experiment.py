@@ -129,7 +129,7 @@ class Experiment:
             "task": self.task.to_dict(),
             "test_task": self.test_task.to_dict(),
             "seed": self.seed,
-            "runs": self.runs,
+            # not "runs": a run's cells depend on its index alone, so more runs extend an experiment
             "tests": self.tests,
             "methods": [dataclasses.asdict(m) for m in self.methods],
             "expert": self.expert,
@@ -233,6 +233,10 @@ def from_dict(
     if kind == "sweep":
         if not experiment.obstacles or not experiment.speeds:
             raise ExperimentError(f"{source}: a sweep needs non-empty obstacles and speeds lists")
+        for key, names in (("obstacles", [str(n) for n in experiment.obstacles]),
+                           ("speeds", [f"{v:g}" for v in experiment.speeds])):  # fmt: skip
+            if len(set(names)) != len(names):
+                raise ExperimentError(f"{source}: {key} {names}: every value must differ (one cell each)")
         for n in experiment.obstacles:
             for v in experiment.speeds:
                 try:

@@ -44,7 +44,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
             saved = json.loads(marker.read_text())
         except json.JSONDecodeError as exc:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
-        differ = sorted(k for k in {*saved, *identity} if saved.get(k) != identity.get(k))
+        differ = sorted(k for k in identity if saved.get(k) != identity.get(k))
         if differ:
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
@@ -130,6 +130,16 @@ def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[
     return jobs
 
 
+def read_finished(run_dir: str | Path) -> dict:
+    """The record of a finished training run; a clear error if it has not finished."""
+    from nirl_mj.learn.train import read_run
+
+    record = read_run(run_dir) if (Path(run_dir) / "run.json").is_file() else {}
+    if "train_seeds" not in record:
+        raise ExperimentError(f"{run_dir}: its training has not finished; rerun the experiment to train it")
+    return record
+
+
 def ensure_trained(job: RunJob) -> dict:
     """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
     record. A directory killed before its first checkpoint is started afresh."""
@@ -138,21 +148,24 @@ def ensure_trained(job: RunJob) -> dict:
 
     run_dir = Path(job.run_dir)
     if (run_dir / POLICY_FILE).is_file():
-        return read_run(run_dir)
+        record = read_run(run_dir)
+        if "train_seeds" in record:  # the last file train.finish writes: the run is complete
+            return record
     resume = (run_dir / CHECKPOINT_FILE).is_file()
     if not resume and run_dir.exists():
         shutil.rmtree(run_dir)  # ours, and holds nothing yet: run.json and an empty metrics file
     return train(run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, resume=resume)
 
 
-def policy_of(job: RunJob) -> Callable:
-    """The job's greedy policy on phi(s), training (or resuming) it first if it trains."""
+def policy_of(job: RunJob, train: bool = True) -> Callable:
+    """The job's greedy policy on phi(s), training (or resuming) it first if it trains; with
+    ``train=False`` a run that has not finished is an error (a sweep's tests only load)."""
     kind = job.method.kind
     if kind == "irl":
         from nirl_mj.learn.train import load_policy
 
-        ensure_trained(job)
-        policy, record = load_policy(job.run_dir)
+        record = ensure_trained(job) if train else read_finished(job.run_dir)
+        policy, _ = load_policy(job.run_dir)
         seen = {*record["demo_seeds"], *record["validation_seeds"], *record["train_seeds"]}
         if seen & set(job.test_seeds):
             raise RuntimeError(
@@ -202,9 +215,15 @@ class Execution:
 
     def check_output(self, out: str | Path) -> None:
         """With ``report_only``, OUT must hold a started experiment: there is nothing to report else."""
-        if self.report_only and not (Path(out) / EXPERIMENT_FILE).is_file():
+        if not self.report_only:
+            return
+        if not (Path(out) / EXPERIMENT_FILE).is_file():
             raise ExperimentError(
                 f"--report: {out} holds no started experiment; run it first (without --report)"
+            )
+        if not (Path(out) / "demos.npz").is_file():
+            raise ExperimentError(
+                f"--report: {out} is still collecting its demonstrations; no cell has finished"
             )
 
 

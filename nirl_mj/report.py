@@ -20,6 +20,7 @@ matplotlib.use("Agg")  # headless: files only
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from nirl_mj.atomic import write_figure  # noqa: E402
 from nirl_mj.record import layout_of  # noqa: E402
 from nirl_mj.trajectory import Trajectory  # noqa: E402
 
@@ -48,7 +49,7 @@ def _line_plot(path: Path, series: dict[str, Sequence[float]], ylabel: str, titl
     if len(series) > 1:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    write_figure(path, fig)
     plt.close(fig)
 
 
@@ -118,7 +119,7 @@ def paths_plot(path: str | Path, runs: dict[str, Sequence[Trajectory]], arenas: 
         ax.set_title(f"test arena {k}", fontsize=9)
         ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    fig.savefig(path)
+    write_figure(path, fig)
     plt.close(fig)
     return Path(path)
 

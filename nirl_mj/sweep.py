@@ -23,7 +23,7 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from nirl_mj.atomic import write_text
+from nirl_mj.atomic import write_figure, write_text
 from nirl_mj.executors import Cell, Failure
 from nirl_mj.experiment import Experiment
 from nirl_mj.protocol import (
@@ -56,7 +56,7 @@ def train_cell(job: RunJob) -> dict:
 
 def eval_cell(job: RunJob, task: TaskSpec, obstacles: int, speed: float) -> dict:
     """Tests one run's policy on its test arenas with ``obstacles`` obstacles at ``speed`` m/s."""
-    metrics = evaluate_policy(policy_of(job), task, job.test_seeds, job.method.name)
+    metrics = evaluate_policy(policy_of(job, train=False), task, job.test_seeds, job.method.name)
     return {"method": job.method.name, "run": job.run, "obstacles": obstacles, "speed": speed, **metrics}
 
 
@@ -201,7 +201,7 @@ def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path)
+    write_figure(path, fig)
     plt.close(fig)
     return path
 

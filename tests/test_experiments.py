@@ -115,6 +115,8 @@ def test_shipped_experiments_load_full_and_quick():
         ({"quick": {"kind": "sweep"}}, "quick: unknown key(s) kind; accepted: description"),
         ({"kind": "sweep", "obstacles": [5], "speeds": [9.0]}, "cell (5 obstacles, 9.0 m/s): "),
         ({"kind": "sweep", "speeds": [1.0]}, "a sweep needs non-empty obstacles and speeds"),
+        ({"kind": "sweep", "obstacles": [5, 5], "speeds": [1.0]}, "obstacles ['5', '5']: every value"),
+        ({"kind": "sweep", "obstacles": [5], "speeds": [1.0, 1.0000001]}, "speeds ['1', '1']: every"),
     ],
 )  # fmt: skip
 def test_spec_errors_name_the_key_and_what_is_accepted(data, message):
@@ -252,6 +254,14 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     policy = Path(job.run_dir) / "policy.npz"
     protocol.ensure_trained(job)
     assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
+    # Killed between policy.npz and the final run.json: finished again, not taken as done.
+    record_file = Path(job.run_dir) / "run.json"
+    record = json.loads(record_file.read_text())
+    for key in ("iterations", "selected_iteration", "train_seeds"):
+        record.pop(key)
+    record_file.write_text(json.dumps(record))
+    assert "train_seeds" in protocol.ensure_trained(job)
+    assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
     # Killed before its first checkpoint: only run.json is there; started afresh.
     policy.unlink()
     (Path(job.run_dir) / "checkpoint.npz").unlink()
@@ -355,7 +365,7 @@ worst = 43
 
     # Another experiment never writes into this directory; the same one resumes (nothing to do).
     assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet"]) == 2
-    assert "holds another experiment (it differs in: runs, tests)" in capsys.readouterr().err
+    assert "holds another experiment (it differs in: tests)" in capsys.readouterr().err
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     assert main(["compare", "--task", str(spec), "--quick", "--out", str(tmp_path / "other"), "--quiet"]) == 2

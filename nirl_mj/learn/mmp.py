@@ -13,6 +13,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from nirl_mj.features import N_ACTIONS
+
 __all__ = [
     "discounted_suffix_sums",
     "feature_expectations",
@@ -21,6 +23,7 @@ __all__ = [
     "minimise_mmp",
     "mmp_objective_blocks",
     "minimise_mmp_blocks",
+    "structured_loss",
     "MaxMarginStep",
 ]
 
@@ -194,6 +197,13 @@ def minimise_mmp_blocks(
     )
 
 
+def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
+    """l(s, a) of the structured hinge, (N, 6): 0 for the expert's action, ``loss`` for the others."""
+    table = np.full((len(expert_actions), N_ACTIONS), float(loss))
+    table[np.arange(len(table)), expert_actions.astype(int)] = 0.0
+    return table
+
+
 def _pair_features_of(trajectories: Sequence, kind: str) -> list[np.ndarray]:
     """f(s_t, a_t) of each non-empty trajectory, (L_i, D) each."""
     from nirl_mj.learn.reward import pair_features
@@ -231,7 +241,7 @@ class MaxMarginStep:
     def learner_future(self, trajectories: Sequence) -> np.ndarray:
         """What follows each demonstrated pair on the learner's side, mu(next), (N, D):
         the learner's own mean discounted sum (``future_mix`` = 1), the expert's
-        continuation (0, SCIRL's heuristic), or a mixture."""
+        continuation (0, akin to SCIRL's heuristic, see docs/ALGORITHM.md), or a mixture."""
         c = self.config
         future = (1.0 - c.future_mix) * self.expert_next
         if c.future_mix:
@@ -260,9 +270,7 @@ class MaxMarginStep:
             # Paper: 0 if the learned policy reproduces the expert's pair, else l.
             per_pair = np.where(greedy_on_demos == self.demo_actions, 0.0, c.margin_loss)
             return np.repeat(per_pair[:, None], 6, axis=1)
-        loss = np.full((len(self.demo_actions), 6), c.margin_loss)
-        loss[np.arange(len(loss)), self.demo_actions.astype(int)] = 0.0
-        return loss
+        return structured_loss(self.demo_actions, c.margin_loss)
 
     def update(
         self,

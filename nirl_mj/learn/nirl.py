@@ -58,8 +58,9 @@ class NirlConfig:
     reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
     matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums
     # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
-    # discounted sum (its own behaviour); 0: the expert's own continuation (SCIRL heuristic,
-    # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E)); in between: a mixture.
+    # discounted sum (its own behaviour); 0: the expert's own continuation,
+    # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E) (akin to SCIRL's heuristic, which uses
+    # mu_E(s, a_E): docs/ALGORITHM.md); in between: a mixture.
     future_mix: float = 0.0
     margin_loss: float = 0.1  # l(s, a) for a != a_E (paper: 1)
     mmp_lambda: float = 0.0  # lambda_1 of eq. 13

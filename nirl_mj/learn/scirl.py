@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from nirl_mj.learn.mmp import discounted_suffix_sums, mmp_objective, project_to_ball
+from nirl_mj.learn.mmp import discounted_suffix_sums, mmp_objective, project_to_ball, structured_loss
 
 __all__ = ["heuristic_expectations", "minimise_scirl", "ScirlStep"]
 
@@ -108,8 +108,7 @@ class ScirlStep:
         mu_all = heuristic_expectations(
             mu_taken, all_action_features(phi, c.reward_features), actions, c.gamma
         )
-        loss = np.full(mu_all.shape[:2], float(c.margin_loss))
-        loss[np.arange(len(actions)), actions.astype(int)] = 0.0  # L(s, a_E) = 0
+        loss = structured_loss(actions, c.margin_loss)  # L(s, a_E) = 0
         return minimise_scirl(mu_all, mu_taken, loss, c.scirl_steps, c.scirl_step_size)
 
     def update(
