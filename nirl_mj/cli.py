@@ -315,7 +315,7 @@ def _iterations_done(run_dir: str) -> int:
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from nirl_mj.evaluate import evaluate, held_out_seeds
-    from nirl_mj.learn.train import load_policy
+    from nirl_mj.learn.train import load_policy, seen_seeds
     from nirl_mj.spec import apply_overrides, from_dict, load_task
     from nirl_mj.task import make_env
     from nirl_mj.trajectory import load_dataset
@@ -323,7 +323,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.run:
         policy, run = load_policy(args.run, args.which)
         spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
-        seen = {*run.get("demo_seeds", []), *run.get("validation_seeds", []), *run.get("train_seeds", [])}
+        seen = seen_seeds(run)
         name = "nirl"
     else:
         demos = load_dataset(args.demos) if args.demos else []
@@ -430,11 +430,11 @@ def _render_subject(args: argparse.Namespace) -> tuple:
         raise RenderError(f"--episode {args.episode}: expected a test arena index >= 0")
     count = args.episode + max(1, args.arenas if args.paths else 1)
     if args.run:
-        from nirl_mj.learn.train import load_policy
+        from nirl_mj.learn.train import load_policy, seen_seeds
 
         policy, run = load_policy(args.run, args.which)
         spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
-        seen = {*run.get("demo_seeds", []), *run.get("validation_seeds", []), *run.get("train_seeds", [])}
+        seen = seen_seeds(run)
         seeds, what = held_out_seeds(args.seed, count, seen), f"{args.run} ({args.which} policy)"
     else:
         from nirl_mj.policies import POLICIES

@@ -33,7 +33,7 @@ from nirl_mj.demos import ExpertConfig, collect
 from nirl_mj.evaluate import domain_seeds, evaluate, held_out_seeds
 from nirl_mj.learn.bc import behaviour_cloning
 from nirl_mj.learn.nirl import NirlConfig
-from nirl_mj.learn.train import load_policy, read_run, train, validation_seeds
+from nirl_mj.learn.train import ensure_trained, load_policy, read_run, validation_seeds
 from nirl_mj.policies import always_forward, rule_policy
 from nirl_mj.report import paths_plot, read_metrics, results_table, training_plots
 from nirl_mj.trajectory import load_dataset, save_dataset
@@ -119,9 +119,7 @@ class _Job:
 
     def policy(self) -> Callable:
         if self.config is not None:
-            if not (self.run_dir / "policy.npz").exists():
-                train(self.run_dir, self.task, self.demos_path, self.config, self.seed,
-                      resume=(self.run_dir / "checkpoint.npz").exists())  # fmt: skip
+            ensure_trained(self.run_dir, self.task, self.demos_path, self.config, self.seed)
             return load_policy(self.run_dir)[0]
         if self.name == "behaviour cloning":
             return behaviour_cloning(load_dataset(self.demos_path), seed=self.seed)

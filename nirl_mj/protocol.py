@@ -18,7 +18,6 @@ record), and a cell's result depends on nothing but its own arguments.
 from __future__ import annotations
 
 import json
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -142,19 +141,11 @@ def read_finished(run_dir: str | Path) -> dict:
 
 def ensure_trained(job: RunJob) -> dict:
     """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
-    record. A directory killed before its first checkpoint is started afresh."""
+    record (``nirl_mj.learn.train.ensure_trained``)."""
     from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.learn.train import CHECKPOINT_FILE, POLICY_FILE, read_run, train
+    from nirl_mj.learn.train import ensure_trained as ensure_run
 
-    run_dir = Path(job.run_dir)
-    if (run_dir / POLICY_FILE).is_file():
-        record = read_run(run_dir)
-        if "train_seeds" in record:  # the last file train.finish writes: the run is complete
-            return record
-    resume = (run_dir / CHECKPOINT_FILE).is_file()
-    if not resume and run_dir.exists():
-        shutil.rmtree(run_dir)  # ours, and holds nothing yet: run.json and an empty metrics file
-    return train(run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, resume=resume)
+    return ensure_run(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed)
 
 
 def policy_of(job: RunJob, train: bool = True) -> Callable:
@@ -162,11 +153,11 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
     ``train=False`` a run that has not finished is an error (a sweep's tests only load)."""
     kind = job.method.kind
     if kind == "irl":
-        from nirl_mj.learn.train import load_policy
+        from nirl_mj.learn.train import load_policy, seen_seeds
 
         record = ensure_trained(job) if train else read_finished(job.run_dir)
         policy, _ = load_policy(job.run_dir)
-        seen = {*record["demo_seeds"], *record["validation_seeds"], *record["train_seeds"]}
+        seen = seen_seeds(record)
         if seen & set(job.test_seeds):
             raise RuntimeError(
                 f"{job.run_dir}: test arenas seen in training: {sorted(seen & set(job.test_seeds))}"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -159,6 +160,41 @@ def train(
             on_metrics(metrics)
     selection = select(learner, env, record["validation_seeds"][config.validation_arenas :])
     return finish(run_dir, learner, {**record, "selection": selection})
+
+
+def seen_seeds(record: dict) -> set[int]:
+    """Every arena seed a run's learner saw: demonstrations, training rollouts, validation."""
+    return {
+        *record.get("demo_seeds", []),
+        *record.get("validation_seeds", []),
+        *record.get("train_seeds", []),
+    }
+
+
+def ensure_trained(
+    run_dir: str | os.PathLike,
+    task: specs.TaskSpec,
+    demos_path: str | os.PathLike,
+    config: NirlConfig,
+    seed: int = 0,
+) -> dict:
+    """Trains the run, resumes it from its checkpoint, or returns a finished one's record.
+
+    Finished means the final record is written (:func:`finish` writes it last). A directory
+    killed before its first checkpoint holds only the files :func:`train` starts with and is
+    started afresh; one holding anything else is refused."""
+    run_dir = Path(run_dir)
+    if (run_dir / RUN_FILE).is_file() and (run_dir / POLICY_FILE).is_file():
+        record = read_run(run_dir)
+        if "train_seeds" in record:
+            return record
+    resume = (run_dir / CHECKPOINT_FILE).is_file()
+    if not resume and run_dir.exists():
+        extra = {p.name for p in run_dir.iterdir()} - {RUN_FILE, METRICS_FILE, REWARD_FILE}
+        if extra:
+            raise RunError(f"{run_dir} holds {sorted(extra)} but no checkpoint; choose another directory")
+        shutil.rmtree(run_dir)  # holds only files a training writes, and no checkpoint to resume
+    return train(run_dir, task, demos_path, config, seed, resume=resume)
 
 
 def validation_seeds(config: NirlConfig, seed: int) -> list[int]:
