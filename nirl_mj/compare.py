@@ -28,13 +28,11 @@ from nirl_mj.experiment import Experiment
 from nirl_mj.protocol import (
     Execution,
     RunJob,
-    ensure_demos,
     evaluate_policy,
     failed_section,
     failure_rows,
-    open_output,
     policy_of,
-    run_jobs,
+    prepare,
 )
 from nirl_mj.spec import TaskSpec
 from nirl_mj.stats import summarise_runs
@@ -62,13 +60,8 @@ def run_compare(
 
     ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
     """
-    from nirl_mj.demos import default_workers
-
     execution = execution or Execution()
-    execution.check_output(out)
-    out = open_output(out, experiment)
-    demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
-    jobs = run_jobs(experiment, out, demos)
+    out, jobs = prepare(experiment, out, execution, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
     with execution.start(out) as runner:
         if on_start:

@@ -75,6 +75,19 @@ def ensure_demos(out: Path, experiment: Experiment, workers: int, log: Callable[
     return path
 
 
+def prepare(
+    experiment: Experiment, out: str | Path, execution: Execution, log: Callable[[str], None]
+) -> tuple[Path, dict[tuple[str, int], RunJob]]:
+    """Creates or re-opens OUT (refusing another experiment), makes the demonstrations once,
+    and returns OUT (absolute) with every (method, run) job."""
+    from nirl_mj.demos import default_workers
+
+    execution.check_output(out)
+    out = open_output(out, experiment)
+    demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
+    return out, run_jobs(experiment, out, demos)
+
+
 def run_seed(experiment: Experiment, run: int) -> int:
     """The training seed of run ``run`` (also the seed of its test arenas)."""
     return experiment.seed + run

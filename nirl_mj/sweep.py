@@ -29,14 +29,12 @@ from nirl_mj.experiment import Experiment
 from nirl_mj.protocol import (
     Execution,
     RunJob,
-    ensure_demos,
     ensure_trained,
     evaluate_policy,
     failed_section,
     failure_rows,
-    open_output,
     policy_of,
-    run_jobs,
+    prepare,
 )
 from nirl_mj.spec import TaskSpec
 from nirl_mj.stats import summarise_runs
@@ -77,13 +75,8 @@ def run_sweep(
     on_done: Callable | None = None,
 ) -> dict:
     """Runs (or resumes) the sweep in ``out``; writes its CSV, table and plot; returns the summary."""
-    from nirl_mj.demos import default_workers
-
     execution = execution or Execution()
-    execution.check_output(out)
-    out = open_output(out, experiment)
-    demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
-    jobs = run_jobs(experiment, out, demos)
+    out, jobs = prepare(experiment, out, execution, log)
     trainings = [
         Cell(train_id(m, r), train_cell, (job,)) for (m, r), job in jobs.items() if job.method.trains
     ]
