@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from nirl_mj.atomic import FILE_MODE
 from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_FEATURES, N_SENSORS
 
 FORMAT = "nirl-mj-demos"
@@ -367,6 +368,7 @@ def save_dataset(
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
+        os.fchmod(fd, FILE_MODE)  # mkstemp's 0600 would survive the rename
         with os.fdopen(fd, "wb") as f:
             # Looked up on np at call time (tests interrupt the write through it).
             np.savez_compressed(f, **arrays)

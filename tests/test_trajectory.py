@@ -211,6 +211,22 @@ def test_interrupted_write_leaves_no_partial_file(tmp_path, trajs, monkeypatch, 
         assert len(load_dataset(path)) == 1
 
 
+def test_atomic_writes_get_the_permissions_open_would_give(tmp_path, trajs):
+    from nirl_mj.atomic import write_text
+
+    mask = os.umask(0o022)
+    try:
+        (tmp_path / "plain.txt").write_text("x")
+        write_text(tmp_path / "atomic.txt", "x")
+        save_dataset(tmp_path / "d.npz", trajs[:1])
+    finally:
+        os.umask(mask)
+    expected = (tmp_path / "plain.txt").stat().st_mode & 0o777
+    assert expected == 0o644
+    assert (tmp_path / "atomic.txt").stat().st_mode & 0o777 == expected  # not mkstemp's private 0600
+    assert (tmp_path / "d.npz").stat().st_mode & 0o777 == expected
+
+
 def test_save_refuses_what_load_would_reject(tmp_path, trajs):
     import dataclasses
 
