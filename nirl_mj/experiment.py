@@ -22,7 +22,6 @@ import dataclasses
 import json
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -155,12 +154,7 @@ def load_experiment(path: str | Path, quick: bool = False) -> Experiment:
     path = Path(path)
     if path.suffix != ".toml" and not path.is_file():
         path = specs.TASKS_DIR / f"{path}.toml"
-    if not path.is_file():
-        raise ExperimentError(f"experiment file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ExperimentError(f"{path}: not valid TOML: {exc}") from None
+    data = specs.read_toml(path, "experiment file", ExperimentError)
     return from_dict(data, str(path), path.parent, quick)
 
 

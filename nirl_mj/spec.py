@@ -299,14 +299,19 @@ def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
                 f"unknown task {str(task)!r}: give a path to a .toml file or one of: {', '.join(available)}"
             )
         path = named
-    if not path.is_file():
-        raise SpecError(f"task file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "task file", SpecError)
     data.setdefault("name", path.stem)
     return from_dict(data, str(path))
+
+
+def read_toml(path: Path, what: str, error: type[Exception]) -> dict[str, Any]:
+    """The TOML file at ``path`` as a dict; ``error`` names the file if it is missing or invalid."""
+    if not path.is_file():
+        raise error(f"{what} not found: {path}")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML: {exc}") from None
 
 
 def replace(spec: TaskSpec, **sections: dict[str, Any]) -> TaskSpec:
