@@ -212,6 +212,9 @@ def _extremes(ax, x: float, row: dict, face: str, label: str | None) -> None:
 def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dict) -> list[Path]:
     """table.md, table.csv, table.png and results.json in ``out``."""
     title = f"{experiment.name}: {experiment.runs} runs x {experiment.tests} tests"
+    if summary.get("unfinished"):
+        done = sorted({str(s["runs"]) for s in summary["methods"].values()}, key=int)
+        title += f" (partial: {'-'.join(dict.fromkeys([done[0], done[-1]]))} runs finished)"
     title += " (bars: mean with its 95 % CI)"
     bar_chart(out / "table.png", summary, title)
     text = f"""# {experiment.name}{" (quick)" if experiment.quick else ""}: {experiment.description}
