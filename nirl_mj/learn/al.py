@@ -35,6 +35,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nirl_mj.learn.mmp import discounted_suffix_sums, feature_expectations
+from nirl_mj.learn.reward import trajectory_pair_features
 
 __all__ = ["EXPECTATIONS", "expectations", "project", "ProjectionStep"]
 
@@ -78,13 +79,6 @@ def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
     return mu_bar + min(max(c, 0.0), 1.0) * d
 
 
-def _pair_features(trajectories: Sequence, kind: str) -> list[np.ndarray]:
-    """f(s_t, a_t) (L_i, D) of every trajectory (empty ones included: eq. 11 counts them)."""
-    from nirl_mj.learn.reward import pair_features
-
-    return [pair_features(t.features[:-1], t.actions, kind) for t in trajectories]
-
-
 class ProjectionStep:
     """AL's reward step: theta = w / ||w||, w = mu_E - mu_bar after the projection (steps 1-3).
 
@@ -99,7 +93,7 @@ class ProjectionStep:
         self.kind = config.al_expectations
         self.features = config.reward_features
         # mu_E from the demonstrations (eq. 11, or the suffix mean)
-        self.mu_e = expectations(_pair_features(demos, self.features), self.gamma, self.kind)
+        self.mu_e = expectations(trajectory_pair_features(demos, self.features), self.gamma, self.kind)
         self.mu_bar: np.ndarray | None = None  # None until step 1 has seen the first rollouts
 
     def update(
@@ -112,7 +106,7 @@ class ProjectionStep:
     ) -> tuple[np.ndarray, float]:
         """Steps 5 and 2-3 (or step 1 at the first call) on this iteration's rollouts -> (theta, t)."""
         # step 5 (step 1 at the first call): mu of the policy that produced these rollouts
-        mu = expectations(_pair_features(trajectories, self.features), self.gamma, self.kind)
+        mu = expectations(trajectory_pair_features(trajectories, self.features), self.gamma, self.kind)
         if self.mu_bar is None:
             self.mu_bar = mu  # step 1: mu_bar^(0) = mu^(0)
         else:

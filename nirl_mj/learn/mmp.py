@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nirl_mj.features import N_ACTIONS
+from nirl_mj.learn.reward import trajectory_pair_features
 
 __all__ = [
     "discounted_suffix_sums",
@@ -204,13 +205,6 @@ def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
     return table
 
 
-def _pair_features_of(trajectories: Sequence, kind: str) -> list[np.ndarray]:
-    """f(s_t, a_t) of each non-empty trajectory, (L_i, D) each."""
-    from nirl_mj.learn.reward import pair_features
-
-    return [pair_features(t.features[:-1], t.actions, kind) for t in trajectories if len(t)]
-
-
 class MaxMarginStep:
     """NIRL's reward step (Algorithm 1, line 5): theta by projected subgradient on eq. 13.
 
@@ -227,7 +221,7 @@ class MaxMarginStep:
         self.config = config
         self.demo_phi, self.demo_actions = stack_pairs(demos)
         c = config
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in demos]
+        fs = trajectory_pair_features(demos, c.reward_features)
         if c.matching == "paper":
             mu_e = feature_expectations(fs, c.gamma)  # eq. 11
             self.expert = np.broadcast_to(mu_e, (len(self.demo_actions), mu_e.size)).copy()
@@ -245,7 +239,7 @@ class MaxMarginStep:
         c = self.config
         future = (1.0 - c.future_mix) * self.expert_next
         if c.future_mix:
-            fs = _pair_features_of(trajectories, c.reward_features)
+            fs = trajectory_pair_features(trajectories, c.reward_features, skip_empty=True)
             mean_sum = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
             future = future + c.future_mix * mean_sum
         return future
@@ -256,7 +250,7 @@ class MaxMarginStep:
 
         c = self.config
         if c.matching == "paper":
-            fs = _pair_features_of(trajectories, c.reward_features)
+            fs = trajectory_pair_features(trajectories, c.reward_features, skip_empty=True)
             mu = feature_expectations(fs, c.gamma)  # eq. 11 for the learner
             return np.broadcast_to(mu, (len(self.demo_actions), 6, mu.size)).copy()
         # Occupancy: f(s, a) now, then what follows (learner_future).

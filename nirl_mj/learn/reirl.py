@@ -196,7 +196,7 @@ class RelativeEntropyStep:
     """
 
     def __init__(self, config, demos: Sequence) -> None:
-        from nirl_mj.learn.reward import all_action_features, pair_features
+        from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
         from nirl_mj.trajectory import stack_pairs
 
         c = self.config = config
@@ -208,7 +208,7 @@ class RelativeEntropyStep:
         per_action = all_action_features(phi, c.reward_features)  # (N, 6, D)
         self.dim = per_action.shape[-1]
         # step 1: f_hat = mu_E, the expert's samples truncated and normalised as the learner's
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in demos]
+        fs = trajectory_pair_features(demos, c.reward_features)
         uniform = [np.full(len(f), 1.0 / N_ACTIONS) for f in fs]  # (the expert's ratios are not used)
         expert, _ = samples(fs, uniform, c.gamma, c.re_horizon, c.re_expectations, self.dim)
         self.mu_e = expert.mean(axis=0)

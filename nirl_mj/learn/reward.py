@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,6 +67,11 @@ def all_action_features(phi: np.ndarray, kind: str) -> np.ndarray:
 def pair_features(phi: np.ndarray, actions: np.ndarray, kind: str) -> np.ndarray:
     """f(s_t, a_t) for given pairs: phi (N, 16), actions (N,) -> (N, 6 * block)."""
     return all_action_features(phi, kind)[np.arange(len(actions)), np.asarray(actions, dtype=int)]
+
+
+def trajectory_pair_features(trajectories: Sequence, kind: str, skip_empty: bool = False) -> list[np.ndarray]:
+    """f(s_t, a_t) along each trajectory, (L_i, 6 * block) each; ``skip_empty`` drops those of no pair."""
+    return [pair_features(t.features[:-1], t.actions, kind) for t in trajectories if len(t) or not skip_empty]
 
 
 @dataclass(frozen=True)

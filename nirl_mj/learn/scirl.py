@@ -98,12 +98,12 @@ class ScirlStep:
 
     def fit(self) -> tuple[np.ndarray, float]:
         """Steps 1-3 on the demonstrations (deterministic: a resumed run recomputes the same theta)."""
-        from nirl_mj.learn.reward import all_action_features, pair_features
+        from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
         from nirl_mj.trajectory import stack_pairs
 
         c = self.config
         phi, actions = stack_pairs(self.demos)
-        fs = [pair_features(t.features[:-1], t.actions, c.reward_features) for t in self.demos]
+        fs = trajectory_pair_features(self.demos, c.reward_features)
         mu_taken = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs])  # step 1
         mu_all = heuristic_expectations(
             mu_taken, all_action_features(phi, c.reward_features), actions, c.gamma
