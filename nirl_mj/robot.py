@@ -19,6 +19,7 @@ through the ``<pair>`` elements that :meth:`Robotino.attach_to` adds.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -301,20 +302,39 @@ class Robotino(composer.Entity):
         ``yaw + wz * cmd_dt / 2`` (s), so a straight segment per period
         follows the arc the wheels would drive.
         """
+        self.wheel_commander(physics, cmd_dt)(np.asarray(omega, dtype=float))
+
+    def wheel_commander(self, physics: Any, cmd_dt: float = 0.01) -> Callable[[np.ndarray], None]:
+        """:meth:`set_wheel_speeds` bound to ``physics`` and ``cmd_dt`` (s), for the per-period
+        hot loop: it takes float64 arrays of shape (3,) only, and (``planar``) remembers the body
+        twist of the last wheel speeds, which repeat for most of a decision."""
         c = self._get_cache(physics)
+        ctrl, sl = c.ctrl, c.sl
         if not self._planar_joints:
-            c.ctrl[c.sl] = omega
-            return
-        vx, vy, wz = drive.body_twist(omega)
-        yaw = c.qpos[c.qposadr + 2] + 0.5 * wz * cmd_dt
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        ctrl, i = c.ctrl, c.sl.start if isinstance(c.sl, slice) else None
-        if i is None:
-            ctrl[c.sl] = (cy * vx - sy * vy, sy * vx + cy * vy, wz)
-        else:
-            ctrl[i] = cy * vx - sy * vy
-            ctrl[i + 1] = sy * vx + cy * vy
-            ctrl[i + 2] = wz
+
+            def command(omega: np.ndarray) -> None:
+                ctrl[sl] = omega
+
+            return command
+        qpos, yaw_adr = c.qpos, c.qposadr + 2
+        i = sl.start if isinstance(sl, slice) else None
+        last: list = [b"", (0.0, 0.0, 0.0)]
+
+        def command(omega: np.ndarray) -> None:
+            key = omega.tobytes()
+            if key != last[0]:
+                last[0], last[1] = key, tuple(drive.body_twist(omega))
+            vx, vy, wz = last[1]
+            yaw = qpos[yaw_adr] + 0.5 * wz * cmd_dt
+            cy, sy = math.cos(yaw), math.sin(yaw)
+            if i is None:
+                ctrl[sl] = (cy * vx - sy * vy, sy * vx + cy * vy, wz)
+            else:
+                ctrl[i] = cy * vx - sy * vy
+                ctrl[i + 1] = sy * vx + cy * vy
+                ctrl[i + 2] = wz
+
+        return command
 
     def get_pose(self, physics: Any) -> np.ndarray:
         """Planar pose ``(x, y, yaw)`` (m, m, rad), shape (3,), from qpos (current)."""

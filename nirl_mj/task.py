@@ -26,6 +26,7 @@ from dm_env import specs
 from nirl_mj import features
 from nirl_mj.arena import NavigationArena
 from nirl_mj.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.environment import Environment
 from nirl_mj.layout import Layout, generate_layout
 from nirl_mj.robot import Robotino
 from nirl_mj.sensing import RangeSensors, Scan
@@ -163,7 +164,8 @@ class NavigationTask(composer.Task):
         ray_gap = features.SECTOR_WIDTH / self._spec.robot.rays_per_sensor
         self._hidden_margin = 0.5 + (self._spec.sensing.range + BODY_RADIUS) * math.sin(ray_gap / 2)
         self._ground_id = physics.bind(self._arena.ground_geom).element_id
-        self._base_id = physics.bind(self._robot.base_body).element_id
+        base_id = physics.bind(self._robot.base_body).element_id
+        self._base_xy = self._data.xpos[base_id, :2]  # a view: current after every step
         self._origin_id = physics.bind(self._robot.sensor_origin).element_id
 
     def initialize_episode(self, physics, random_state) -> None:
@@ -224,8 +226,9 @@ class NavigationTask(composer.Task):
                 change |= body_twist(wheel_commands[:-1])[:, 2] != 0
             starts = [0, *(np.flatnonzero(change) + 1).tolist()]
         moving = self._spec.arena.moving_obstacles > 0
+        command = self._robot.wheel_commander(physics, period)
         for k, j in zip(starts, [*starts[1:], n_cmd], strict=True):
-            self._robot.set_wheel_speeds(physics, wheel_commands[k], period)
+            command(wheel_commands[k])
             if moving:
                 self._arena.move_obstacles(physics, period * (j - k))
             # Composer takes the decision's very last substep itself.
@@ -236,7 +239,7 @@ class NavigationTask(composer.Task):
                 self.command_hook(physics)
             if checked and self._check_outcome():
                 # Decided: hold the robot still for composer's final substep.
-                self._robot.set_wheel_speeds(physics, np.zeros(3))
+                command(np.zeros(3))
                 break
 
     def after_step(self, physics, random_state) -> None:
@@ -283,7 +286,7 @@ class NavigationTask(composer.Task):
         return self._scan
 
     def _target_distance(self) -> float:
-        x, y = self._data.xpos[self._base_id, :2]
+        x, y = self._base_xy
         tx, ty = self._layout.target
         return math.hypot(tx - x, ty - y)
 
@@ -312,8 +315,8 @@ class NavigationTask(composer.Task):
         ncon = self._data.ncon
         if ncon == 0:
             return False
-        geoms = self._data.contact.geom[:ncon]
-        return bool(np.any((geoms[:, 0] != self._ground_id) & (geoms[:, 1] != self._ground_id)))
+        # A contact holds the floor at most once: some contact lacks it iff fewer than ncon do.
+        return int(np.count_nonzero(self._data.contact.geom == self._ground_id)) < ncon
 
     def _sense(self, physics) -> None:
         self._pose = self._robot.get_pose(physics)
@@ -359,7 +362,7 @@ def make_env(
     ``outcome`` (an :class:`Outcome`), ``steps`` decisions taken.
     """
     spec = load_task(task)
-    return composer.Environment(
+    return Environment(
         task=NavigationTask(spec),
         random_state=seed,
         recompile_mjcf_every_episode=False,

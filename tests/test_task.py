@@ -238,3 +238,34 @@ def test_unchecked_decisions_are_the_same_physics_step_for_step(monkeypatch):
             m.setattr("nirl_mj.task.NavigationTask._nothing_within_reach", lambda self: False)
             _, checked = rollout(make_env(task, seed=0), actions)
         np.testing.assert_array_equal(fast, checked)
+
+
+@pytest.mark.parametrize("delayed", [False, True])
+def test_observations_are_composers_own(monkeypatch, delayed):
+    # nirl_mj.environment plans the observation schedule directly for plain observables;
+    # composer's general updater must see the same observations, dtypes and shapes, and
+    # a delayed observable must fall back to composer's path.
+    from dm_control import composer
+
+    def observations(env):
+        if delayed:
+            env.task.observables["pose"].delay = 1
+        rng = np.random.default_rng(1)
+        seen = [env.reset().observation]
+        while len(seen) < 40:
+            ts = env.step(np.int64(rng.integers(6)))
+            seen.append(ts.observation)
+            if ts.last():
+                seen.append(env.reset().observation)
+        return seen, env.observation_spec()
+
+    task = spec.replace(spec.load_task("navigate"), arena={"static_obstacles": 30})
+    ours, our_spec = observations(make_env(task, seed=5))
+    monkeypatch.setattr("nirl_mj.task.Environment", composer.Environment)
+    theirs, their_spec = observations(make_env(task, seed=5))
+    assert our_spec == their_spec
+    for a, b in zip(ours, theirs, strict=True):
+        assert a.keys() == b.keys()
+        for key in a:
+            assert np.asarray(a[key]).dtype == np.asarray(b[key]).dtype, key
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
