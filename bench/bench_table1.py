@@ -1,0 +1,113 @@
+"""Cost of the Table I protocol (tasks/table1.toml): wall time, and core time per method.
+
+Runs the protocol as ``nirl-mj compare`` does, but with ``--runs`` runs (default 2)
+instead of 25, on the local executor with ``--workers`` processes, in a temporary
+directory (demonstrations included), and projects the 25-run wall time from it:
+demonstrations + cells' wall x 25 / runs. The cells of a run are independent and
+the experiment has 8 x 25 of them, so the projection only misses the tail of the
+last cells. With ``--existing DIR``, it also reads the cell times of a finished
+(or partial) ``nirl-mj compare`` directory: the core time the real protocol took.
+Target (issue #6): the full protocol within 90 minutes on a 2-core machine.
+Writes docs/PERFORMANCE.md.
+
+    python bench/bench_table1.py [--runs 2] [--workers 2] [--existing runs/table1] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from nirl_mj.compare import run_compare
+from nirl_mj.experiment import load_experiment
+from nirl_mj.protocol import Execution, prepare
+
+try:
+    from report import markdown_table, write_section
+except ImportError:  # run as a module
+    from bench.report import markdown_table, write_section
+
+TARGET_MIN = 90.0
+
+
+def cell_seconds(out: Path) -> dict[str, list[float]]:
+    """Seconds of every finished cell in ``out``/cells, by method."""
+    times: dict[str, list[float]] = {}
+    for path in sorted((out / "cells").glob("*.json")):
+        record = json.loads(path.read_text())
+        method = record["id"].rsplit("-run", 1)[0]
+        times.setdefault(method, []).append(float(record["seconds"]))
+    return times
+
+
+def method_rows(times: dict[str, list[float]]) -> list[list[str]]:
+    """Per method: cells, median and total core seconds."""
+    rows = [[m, str(len(t)), f"{statistics.median(t):.0f}", f"{sum(t) / 60:.1f}"] for m, t in times.items()]
+    total = sum(sum(t) for t in times.values())
+    per_run = sum(statistics.median(t) for t in times.values())
+    rows.append(["all (one run: sum of medians)", "", f"{per_run:.0f}", f"{total / 60:.1f}"])
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=2, help="runs to time (the protocol has 25)")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--existing", type=Path, help="a `nirl-mj compare` directory to read cell times from")
+    parser.add_argument("--quick", action="store_true", help="the protocol's [quick] version (a smoke test)")
+    parser.add_argument("--no-write", action="store_true", help="print only")
+    args = parser.parse_args()
+
+    full = load_experiment("table1", quick=args.quick)
+    experiment = dataclasses.replace(full, runs=args.runs)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "table1"
+        execution = Execution("local", args.workers)
+        t0 = time.perf_counter()
+        prepare(experiment, out, execution, log=lambda _: None)  # the demonstrations, made once
+        demos = time.perf_counter() - t0
+        run_compare(experiment, out, execution, log=lambda _: None)
+        wall = time.perf_counter() - t0
+        times = cell_seconds(out)
+    cells_wall = wall - demos
+    projected = demos + cells_wall * full.runs / args.runs
+    lines = [
+        f"{args.runs} runs of the {len(full.methods)} methods ({len(full.methods) * args.runs} cells of "
+        f"{full.tests} tests), local executor, {args.workers} workers, from an empty directory: "
+        f"**{wall / 60:.1f} min wall**. Projected to the protocol's {full.runs} runs: "
+        f"**{projected / 60:.0f} min**"
+        + (
+            "."
+            if args.quick
+            else f" (target {TARGET_MIN:.0f} min, {'met' if projected / 60 <= TARGET_MIN else 'not met'})."
+        ),
+        "",
+        "Core time per cell (s) and in all (min), this run:",
+        "",
+        markdown_table(["method", "cells", "median (s)", "total (min)"], method_rows(times)),
+    ]
+    if args.existing:
+        existing = cell_seconds(args.existing)
+        n = sum(len(t) for t in existing.values())
+        total = sum(sum(t) for t in existing.values())
+        lines += [
+            "",
+            f"The cells of `{args.existing}` ({n} cells, run in several sessions on a machine shared with "
+            f"other work): {total / 60:.0f} core-minutes, {total / 60 / args.workers:.0f} min on "
+            f"{args.workers} fully used cores.",
+            "",
+            markdown_table(["method", "cells", "median (s)", "total (min)"], method_rows(existing)),
+        ]
+    body = "\n".join(lines)
+    print(body)
+    if not (args.no_write or args.quick):
+        write_section("Table I protocol (bench/bench_table1.py)", body)
+
+
+if __name__ == "__main__":
+    main()
