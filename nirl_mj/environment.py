@@ -18,7 +18,13 @@ from dm_control.composer.observation import updater as composer_updater
 
 
 class EveryStepUpdater(observation.Updater):
-    """composer's ``observation.Updater`` with a direct schedule for plain observables."""
+    """composer's ``observation.Updater`` with a direct schedule for plain observables.
+
+    Reads composer internals (``_enabled_list``, ``_step_counter``; checked against
+    dm-control 1.0.50); tests/test_task.py compares the observations with composer's own.
+    """
+
+    _plain = False  # until reset: composer's path, which raises its own errors
 
     def reset(self, physics, random_state) -> None:
         super().reset(physics, random_state)
@@ -30,11 +36,12 @@ class EveryStepUpdater(observation.Updater):
         )
 
     def prepare_for_next_control_step(self) -> None:
-        if not getattr(self, "_plain", False):
+        if not self._plain:
             super().prepare_for_next_control_step()
             return
         upcoming = (self._step_counter + 1, composer_updater.DEFAULT_DELAY)
         for enabled in self._enabled_list:
+            # Already there if a physics error cut the last step short: never twice.
             if not enabled.update_schedule or enabled.update_schedule[-1][0] < upcoming[0]:
                 enabled.update_schedule.append(upcoming)
 

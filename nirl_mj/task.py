@@ -238,7 +238,8 @@ class NavigationTask(composer.Task):
             if self.command_hook is not None:
                 self.command_hook(physics)
             if checked and self._check_outcome():
-                # Decided: hold the robot still for composer's final substep.
+                # Decided: hold the robot still for composer's final substep (zero twist:
+                # the command period does not matter).
                 command(np.zeros(3))
                 break
 

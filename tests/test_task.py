@@ -252,14 +252,19 @@ def test_observations_are_composers_own(monkeypatch, delayed):
             env.task.observables["pose"].delay = 1
         rng = np.random.default_rng(1)
         seen = [env.reset().observation]
+        ends = 0
         while len(seen) < 40:
             ts = env.step(np.int64(rng.integers(6)))
             seen.append(ts.observation)
             if ts.last():
+                ends += 1
                 seen.append(env.reset().observation)
+        assert ends >= 2  # resets after an episode's end are compared too
         return seen, env.observation_spec()
 
-    task = spec.replace(spec.load_task("navigate"), arena={"static_obstacles": 30})
+    task = spec.replace(
+        spec.load_task("navigate"), arena={"static_obstacles": 30}, control={"step_budget": 12}
+    )
     ours, our_spec = observations(make_env(task, seed=5))
     monkeypatch.setattr("nirl_mj.task.Environment", composer.Environment)
     theirs, their_spec = observations(make_env(task, seed=5))
