@@ -2,7 +2,8 @@
 
 A fixed set of real cells (``nirl_mj.compare.compare_cell``: the rule policy
 on ``--tests`` held-out arenas of tasks/navigate.toml, tyre drive, a different
-set of arenas per cell) runs on the serial executor, on 1 and 2 local
+set of arenas per cell; 40 tests take about 8 s, still shorter than an
+experiment's cells, 10 s to a few minutes, so the start-up weighs more here) runs on the serial executor, on 1 and 2 local
 processes, and on a local Ray cluster of 1 and 2 CPUs. Each pool runs the cells
 twice: *cold* (including starting its processes or Ray) and *warm* (the same
 executor again: what the many cells of a long experiment see). Parallel
@@ -11,7 +12,7 @@ executor must give the results of the serial one. A pure-Python loop in 1 and 2
 processes, before and after, gives the machine's own ceiling at the time: on a
 shared machine no executor can do better. Writes docs/PERFORMANCE.md.
 
-    python bench/bench_executors.py [--cells 8] [--tests 10] [--no-ray]
+    python bench/bench_executors.py [--cells 8] [--tests 40] [--no-ray]
 """
 
 from __future__ import annotations
@@ -85,7 +86,7 @@ def timed(executor: str, workers: int, work: list[Cell]) -> tuple[float, float, 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cells", type=int, default=8)
-    parser.add_argument("--tests", type=int, default=10, help="episodes per cell")
+    parser.add_argument("--tests", type=int, default=40, help="episodes per cell")
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray executor")
     parser.add_argument("--no-write", action="store_true", help="print only")
     args = parser.parse_args()
