@@ -3,14 +3,15 @@
 A fixed set of real cells (``nirl_mj.compare.compare_cell``: the rule policy
 on ``--tests`` held-out arenas of tasks/navigate.toml, tyre drive, a different
 set of arenas per cell; 40 tests take about 8 s, still shorter than an
-experiment's cells, 10 s to a few minutes, so the start-up weighs more here) runs on the serial executor, on 1 and 2 local
-processes, and on a local Ray cluster of 1 and 2 CPUs. Each pool runs the cells
-twice: *cold* (including starting its processes or Ray) and *warm* (the same
-executor again: what the many cells of a long experiment see). Parallel
-efficiency from 1 to 2 workers = T1 / (2 T2) (target: at least 85 %). Every
-executor must give the results of the serial one. A pure-Python loop in 1 and 2
-processes, before and after, gives the machine's own ceiling at the time: on a
-shared machine no executor can do better. Writes docs/PERFORMANCE.md.
+experiment's cells, 10 s to a few minutes, so the start-up weighs more here)
+runs on the serial executor, on 1 and 2 local processes, and on a local Ray
+cluster of 1 and 2 CPUs. Each pool runs the cells twice: *cold* (including
+starting its processes or Ray) and *warm* (the same executor again: what the
+many cells of a long experiment see). Parallel efficiency from 1 to 2 workers
+= T1 / (2 T2) (target: at least 85 %). Every executor must give the results of
+the serial one. A pure-Python loop in 1 and 2 processes, before and after,
+gives the machine's own ceiling at the time: on a shared machine no executor
+can do better. Writes docs/PERFORMANCE.md.
 
     python bench/bench_executors.py [--cells 8] [--tests 40] [--no-ray]
 """
