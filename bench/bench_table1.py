@@ -63,6 +63,10 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="the protocol's [quick] version (a smoke test)")
     parser.add_argument("--no-write", action="store_true", help="print only")
     args = parser.parse_args()
+    if args.runs < 1 or args.workers < 1:
+        parser.error(f"--runs {args.runs} --workers {args.workers}: both must be at least 1")
+    if args.existing and not (args.existing / "cells").is_dir():
+        parser.error(f"--existing {args.existing}: not a `nirl-mj compare` directory (no cells/ in it)")
 
     full = load_experiment("table1", quick=args.quick)
     experiment = dataclasses.replace(full, runs=args.runs)
