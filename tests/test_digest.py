@@ -1,0 +1,86 @@
+"""A digest of a tiny end-to-end run pins results across refactors.
+
+Through the public command line only (``nirl_mj.cli.main``), so that moving code
+cannot change what is measured: demonstrations, every trained array of the
+default and paper variants and of each baseline's reward step, the selection,
+and the held-out evaluation. The pinned digest was computed at aa67077, before
+the package was split into sub-packages; a change that alters any number
+changes it. Update ``PINNED`` only for a change that is meant to alter results,
+and say so in the commit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from nirl_mj.cli import main
+
+TINY_TASK = [
+    "--set", "arena.size=[24.0, 24.0]", "--set", "arena.start=[4.0, 4.0]",
+    "--set", "arena.target=[20.0, 20.0]", "--set", "arena.static_obstacles=3",
+    "--set", "arena.clear_radius=3.0", "--set", "robot.drive=\"planar\"",
+]  # fmt: skip
+TINY_LEARNER = ["episodes=3", "trajectories_per_episode=2", "validation_arenas=2", "validate_every=1",
+                "replay_episodes=2"]  # fmt: skip
+METHODS = {"default": [], "paper": ["--variant", "paper"], "al": ["--config", "method=\"al\""],
+           "re": ["--config", "method=\"re\""], "scirl": ["--config", "method=\"scirl\""]}  # fmt: skip
+PINNED = "5c81cdfe22b58ef065d47104bb56612958314a08f95a3554c38f6570b76032ee"
+
+
+def _arrays_digest(h, path: Path) -> None:
+    with np.load(path, allow_pickle=False) as data:
+        for key in sorted(data.files):
+            h.update(key.encode())
+            h.update(np.ascontiguousarray(data[key]).tobytes())
+
+
+def tiny_run_digest(tmp: Path) -> str:
+    """sha256 over the datasets, trained arrays, selections, rewards and evaluations of a tiny run."""
+    h = hashlib.sha256()
+    demos = tmp / "demos.npz"
+    assert main(["demos", "--episodes", "3", "--seed", "1", "--workers", "1", "--quiet", "--out",
+                 str(demos), *TINY_TASK]) == 0  # fmt: skip
+    _arrays_digest(h, demos)
+    for name, extra in METHODS.items():
+        run = tmp / name
+        config = [arg for kv in TINY_LEARNER for arg in ("--config", kv)]
+        assert main(["train", "--demos", str(demos), "--out", str(run), "--quiet", "--seed", "2",
+                     *TINY_TASK, *config, *extra]) == 0  # fmt: skip
+        for file in ("checkpoint.npz", "policy.npz"):
+            _arrays_digest(h, run / file)
+        record = json.loads((run / "run.json").read_text())
+        for key in ("selection", "selected_iteration", "train_seeds", "validation_seeds", "demo_seeds"):
+            h.update(json.dumps(record[key], sort_keys=True).encode())
+        h.update(json.dumps(json.loads((run / "reward.json").read_text()), sort_keys=True).encode())
+        h.update((run / "metrics.jsonl").read_bytes())
+        assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 0
+        h.update(json.dumps(json.loads((run / "eval.json").read_text()), sort_keys=True).encode())
+    out = tmp / "main"
+    assert main(["run", "--demos", "2", "--episodes", "1", "--tests", "2", "--workers", "1", "--quiet",
+                 "--out", str(out), *TINY_TASK]) == 0  # fmt: skip
+    results = json.loads((out / "results.json").read_text())
+    h.update(json.dumps(results, sort_keys=True).encode())
+    _arrays_digest(h, out / "demos.npz")
+    _arrays_digest(h, out / "nirl" / "policy.npz")
+    return h.hexdigest()
+
+
+def test_tiny_run_digest_is_unchanged(tmp_path):
+    assert tiny_run_digest(tmp_path) == PINNED
+
+
+def test_a_run_directory_written_before_the_restructure_still_evaluates_the_same(tmp_path):
+    """tests/data/legacy_run_aa67077: the default tiny run above, as aa67077 wrote it."""
+    legacy = Path(__file__).parent / "data" / "legacy_run_aa67077"
+    run = tmp_path / "run"
+    run.mkdir()
+    for file in legacy.iterdir():
+        (run / file.name).write_bytes(file.read_bytes())
+    before = json.loads((run / "eval.json").read_text())
+    (run / "eval.json").unlink()
+    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 0
+    assert json.loads((run / "eval.json").read_text()) == before
