@@ -14,11 +14,12 @@ from __future__ import annotations
 import argparse
 import time
 
-from nirl_mj.demos import ExpertConfig, collect, default_workers
+from nirl_mj.experiments.demos import ExpertConfig, collect, default_workers
+from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert
-from nirl_mj.rollout import episode_seed, run_episode
-from nirl_mj.spec import load_task
-from nirl_mj.task import make_env
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.spec import load_task
+from nirl_mj.sim.task import make_env
 
 try:
     from report import markdown_table, write_section

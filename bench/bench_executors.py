@@ -1,6 +1,6 @@
-"""Parallel efficiency of the experiment executors (nirl_mj/executors.py).
+"""Parallel efficiency of the experiment executors (nirl_mj/experiments/executors.py).
 
-A fixed set of real cells (``nirl_mj.compare.compare_cell``: the rule policy
+A fixed set of real cells (``nirl_mj.experiments.compare.compare_cell``: the rule policy
 on ``--tests`` held-out arenas of tasks/navigate.toml, tyre drive, a different
 set of arenas per cell; 40 tests take about 8 s, still shorter than an
 experiment's cells, 10 s to a few minutes, so the start-up weighs more here)
@@ -23,12 +23,12 @@ import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
 
-from nirl_mj.compare import compare_cell
-from nirl_mj.evaluate import domain_seeds
-from nirl_mj.executors import Cell, Executor
-from nirl_mj.experiment import BUILTIN_METHODS
-from nirl_mj.protocol import RunJob
-from nirl_mj.spec import load_task
+from nirl_mj.experiments.compare import compare_cell
+from nirl_mj.experiments.definition import BUILTIN_METHODS
+from nirl_mj.experiments.executors import Cell, Executor
+from nirl_mj.experiments.protocol import RunJob
+from nirl_mj.experiments.seeds import domain_seeds
+from nirl_mj.sim.spec import load_task
 
 try:
     from report import markdown_table, write_section

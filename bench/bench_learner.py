@@ -23,11 +23,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from nirl_mj import evaluate as evaluation
-from nirl_mj import spec as specs
-from nirl_mj import task as tasks
+from nirl_mj.experiments import evaluation as evaluation
 from nirl_mj.learn import train as training
-from nirl_mj.learn.nirl import NirlConfig
+from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim import task as tasks
 
 try:
     from report import markdown_table, write_section
@@ -101,8 +101,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         demos = args.demos
         if demos is None:
-            from nirl_mj.demos import ExpertConfig, collect
-            from nirl_mj.trajectory import save_dataset
+            from nirl_mj.data.trajectory import save_dataset
+            from nirl_mj.experiments.demos import ExpertConfig, collect
 
             demos = Path(tmp) / "demos.npz"
             save_dataset(demos, collect(specs.load_task("navigate"), ExpertConfig("sensor"), 30, 0))

@@ -30,9 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from nirl_mj.render import View, draw_overlay
-from nirl_mj.spec import load_task
-from nirl_mj.task import make_env
+from nirl_mj.inspect.video import View, draw_overlay
+from nirl_mj.sim.spec import load_task
+from nirl_mj.sim.task import make_env
 
 try:
     from report import markdown_table, write_section
@@ -44,7 +44,7 @@ def measure_camera(camera: str, frames: int, width: int = 640, height: int = 480
     """Mean ms per frame for render, overlay and encoding, over ``frames`` decisions."""
     import imageio.v2 as imageio
 
-    from nirl_mj.policies import rule_policy
+    from nirl_mj.experts.policies import rule_policy
 
     env = make_env(load_task("navigate"), seed=0)
     timestep = env.reset()
@@ -94,14 +94,14 @@ class _TimedRecording:
 def train_once(demos: Path, out: Path, episodes: int, record: bool) -> dict:
     """One training run; with ``record`` the CLI's recording path (per-iteration scalars, then
     ``finish_training``). Returns wall seconds of training and of the recording's parts."""
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.learn.train import train
+    from nirl_mj.experiments.training import train
+    from nirl_mj.learn.loop import NirlConfig
 
     spec = load_task("navigate")
     config = NirlConfig.named("default", episodes=episodes)
     timed = None
     if record:
-        from nirl_mj.record import Recording
+        from nirl_mj.inspect.recording import Recording
 
         timed = _TimedRecording(Recording(out.with_suffix(".rrd")))
     t0 = time.perf_counter()
@@ -109,7 +109,7 @@ def train_once(demos: Path, out: Path, episodes: int, record: bool) -> dict:
     t1 = time.perf_counter()
     result = {"train": t1 - t0, "per_iteration_log": 0.0, "finish": 0.0}
     if timed:
-        from nirl_mj.record import finish_training
+        from nirl_mj.inspect.recording import finish_training
 
         finish_training(timed.recording, out, demos)
         result["per_iteration_log"] = timed.seconds / max(timed.calls, 1)
@@ -147,8 +147,8 @@ def main() -> None:
               f"{r['encode']:4.1f} ms  -> {r['fps']:4.1f} frames/s "
               f"(render alone {r['render_fps']:4.1f})")  # fmt: skip
 
-    from nirl_mj.demos import ExpertConfig, collect
-    from nirl_mj.trajectory import save_dataset
+    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.experiments.demos import ExpertConfig, collect
 
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)

@@ -24,9 +24,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from nirl_mj.compare import run_compare
-from nirl_mj.experiment import load_experiment
-from nirl_mj.protocol import Execution, prepare
+from nirl_mj.experiments.compare import run_compare
+from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.protocol import Execution, prepare
 
 try:
     from report import markdown_table, write_section

@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from nirl_mj import spec as specs
-from nirl_mj.task import make_env
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.task import make_env
 
 try:
     from report import markdown_table, write_section

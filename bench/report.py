@@ -10,7 +10,7 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
-from nirl_mj.atomic import write_text
+from nirl_mj.data.atomic import write_text
 
 PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
 _HEADER = (

@@ -27,8 +27,8 @@ __version__ = "0.1.0"
 
 
 def make_env(task="navigate", seed=None):
-    """See :func:`nirl_mj.task.make_env` (imported lazily so that light modules stay light)."""
-    from nirl_mj.task import make_env as _make_env
+    """See :func:`nirl_mj.sim.task.make_env` (imported lazily so that light modules stay light)."""
+    from nirl_mj.sim.task import make_env as _make_env
 
     return _make_env(task, seed)
 

@@ -25,7 +25,7 @@ def _print_summary(summary: dict) -> None:
 
 
 def _print_predictability(trajectories: list) -> dict | None:
-    from nirl_mj.predictability import predictability
+    from nirl_mj.learn.predictability import predictability
 
     if len(trajectories) < 2:
         return None
@@ -39,7 +39,7 @@ def _print_predictability(trajectories: list) -> dict | None:
 
 
 def _episode_line(trajectory) -> str:
-    from nirl_mj.rollout import path_length
+    from nirl_mj.data.trajectory import path_length
 
     return (
         f"seed {trajectory.arena_seed:10d}  {trajectory.outcome:13s} steps {len(trajectory):4d}  "
@@ -48,10 +48,12 @@ def _episode_line(trajectory) -> str:
 
 
 def _cmd_rollout(args: argparse.Namespace) -> int:
-    from nirl_mj.rollout import PolicyAgent, run_episodes
-    from nirl_mj.spec import apply_overrides, load_task
-    from nirl_mj.task import make_env
-    from nirl_mj.trajectory import summarise
+    from nirl_mj.data.trajectory import summarise
+    from nirl_mj.experiments.seeds import episode_seed
+    from nirl_mj.experts.policies import PolicyAgent
+    from nirl_mj.sim.episode import run_episode
+    from nirl_mj.sim.spec import apply_overrides, load_task
+    from nirl_mj.sim.task import make_env
 
     env = make_env(apply_overrides(load_task(args.task), args.set))
     spec = env.task.spec
@@ -63,9 +65,9 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
     )
     trajectories = []
     with tqdm(total=args.episodes, unit="episode", file=sys.stderr, disable=args.quiet) as bar:
-        for i, trajectory in enumerate(
-            run_episodes(env, PolicyAgent.named(args.policy), args.seed, args.episodes)
-        ):
+        agent = PolicyAgent.named(args.policy)
+        for i in range(args.episodes):
+            trajectory = run_episode(env, agent, episode_seed(args.seed, i))
             trajectories.append(trajectory)
             bar.update()
             bar.write(f"episode {i:3d}  {_episode_line(trajectory)}", file=sys.stdout)
@@ -77,15 +79,15 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from nirl_mj.demos import default_workers
-    from nirl_mj.pipeline import main_job
-    from nirl_mj.report import results_table
-    from nirl_mj.spec import apply_overrides, load_task
+    from nirl_mj.experiments.demos import default_workers
+    from nirl_mj.experiments.main_job import main_job
+    from nirl_mj.inspect.figures import results_table
+    from nirl_mj.sim.spec import apply_overrides, load_task
 
     spec = apply_overrides(load_task(args.task), args.set)
     if args.rerun:
         _check_output(Path(args.rerun), args.overwrite)
-    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.learn.loop import NirlConfig
 
     iterations = args.episodes or NirlConfig.named(args.variant).episodes
     bar = tqdm(total=3 * iterations, unit="iteration", file=sys.stderr, disable=args.quiet,
@@ -112,7 +114,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(results_table(results))
     print(f"report: {Path(args.out) / 'report.md'}")
     if args.rerun:
-        from nirl_mj.record import copy_recording
+        from nirl_mj.inspect.recording import copy_recording
 
         print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun)}")
     if args.json:
@@ -132,19 +134,19 @@ def _check_output(path: Path, overwrite: bool) -> None:
 
 
 def _open_recording(path: str | None, overwrite: bool):
-    """A :class:`nirl_mj.record.Recording` at ``path`` (checked first), or None without one."""
+    """A :class:`nirl_mj.inspect.recording.Recording` at ``path`` (checked first), or None without one."""
     if not path:
         return None
     _check_output(Path(path), overwrite)
-    from nirl_mj.record import Recording
+    from nirl_mj.inspect.recording import Recording
 
     return Recording(path)
 
 
 def _cmd_demos(args: argparse.Namespace) -> int:
-    from nirl_mj.demos import ExpertConfig, collect, default_workers
-    from nirl_mj.spec import apply_overrides, load_task
-    from nirl_mj.trajectory import save_dataset, summarise
+    from nirl_mj.data.trajectory import save_dataset, summarise
+    from nirl_mj.experiments.demos import ExpertConfig, collect, default_workers
+    from nirl_mj.sim.spec import apply_overrides, load_task
 
     out = Path(args.out)
     _check_output(out, args.overwrite)
@@ -171,7 +173,7 @@ def _cmd_demos(args: argparse.Namespace) -> int:
     pred = _print_predictability(trajectories)
     print(f"wrote {out}")
     if args.rerun:
-        from nirl_mj.record import record_demonstrations
+        from nirl_mj.inspect.recording import record_demonstrations
 
         record_demonstrations(args.rerun, trajectories)
         print(f"wrote {args.rerun}")
@@ -181,8 +183,8 @@ def _cmd_demos(args: argparse.Namespace) -> int:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    from nirl_mj.pretreat import map_pretreat
-    from nirl_mj.trajectory import load_dataset, summarise
+    from nirl_mj.data.trajectory import load_dataset, summarise
+    from nirl_mj.learn.pretreat import map_pretreat
 
     trajectories = load_dataset(args.path)
     summary = summarise(trajectories)
@@ -201,15 +203,15 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _cmd_teleop(args: argparse.Namespace) -> int:
+    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.experiments.seeds import episode_seed
     from nirl_mj.experts.teleop import __doc__ as keys_doc
     from nirl_mj.experts.teleop import teleoperate
-    from nirl_mj.rollout import episode_seed
-    from nirl_mj.task import make_env
-    from nirl_mj.trajectory import save_dataset
+    from nirl_mj.sim.task import make_env
 
     out = Path(args.out)
     _check_output(out, args.overwrite)
-    from nirl_mj.spec import apply_overrides, load_task
+    from nirl_mj.sim.spec import apply_overrides, load_task
 
     env = make_env(apply_overrides(load_task(args.task), args.set))
     print(keys_doc.split("\n\n", 2)[2], file=sys.stderr)
@@ -232,9 +234,9 @@ def _cmd_teleop(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.learn.train import read_run, train
-    from nirl_mj.spec import SpecError, apply_overrides, from_dict, load_task
+    from nirl_mj.experiments.training import read_run, train
+    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.sim.spec import SpecError, apply_overrides, from_dict, load_task
 
     if args.resume:
         changed = [flag for flag, given in (("--config", args.config), ("--set", args.set),
@@ -276,7 +278,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 recording.abort()
             raise
     if recording:
-        from nirl_mj.record import finish_training
+        from nirl_mj.inspect.recording import finish_training
 
         print(f"wrote {finish_training(recording, args.out, demos)}")
     print(
@@ -291,8 +293,8 @@ def _config_overrides(assignments: list[str]) -> dict:
     import dataclasses
     import tomllib
 
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.spec import SpecError
+    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.sim.spec import SpecError
 
     fields = {f.name: f.type for f in dataclasses.fields(NirlConfig)}
     out = {}
@@ -314,11 +316,12 @@ def _iterations_done(run_dir: str) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from nirl_mj.evaluate import evaluate, held_out_seeds
-    from nirl_mj.learn.train import load_policy, seen_seeds
-    from nirl_mj.spec import apply_overrides, from_dict, load_task
-    from nirl_mj.task import make_env
-    from nirl_mj.trajectory import load_dataset
+    from nirl_mj.data.trajectory import load_dataset
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.experiments.seeds import held_out_seeds, seen_seeds
+    from nirl_mj.experiments.training import load_policy
+    from nirl_mj.sim.spec import apply_overrides, from_dict, load_task
+    from nirl_mj.sim.task import make_env
 
     if args.run:
         policy, run = load_policy(args.run, args.which)
@@ -351,7 +354,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         f"{metrics['mean_path_length']:.1f} m  SPL {metrics['spl']:.2f}"
     )
     if args.rerun:
-        from nirl_mj.record import record_evaluation
+        from nirl_mj.inspect.recording import record_evaluation
 
         reward = Path(args.run) / "reward.json" if args.run else None
         reward = reward if reward and reward.is_file() else None
@@ -364,7 +367,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 def _reference_policy(args: argparse.Namespace, demos: list):
     """A reference policy for ``eval --policy``: forward, rule, or behaviour cloning of --demos."""
-    from nirl_mj.policies import POLICIES
+    from nirl_mj.experts.policies import POLICIES
 
     if args.policy != "bc":
         return POLICIES[args.policy]
@@ -377,7 +380,7 @@ def _reference_policy(args: argparse.Namespace, demos: list):
 
 def _merge_json(path: Path, key: str, value: dict) -> None:
     """Adds ``key`` to the JSON object in ``path`` (atomically), keeping the other entries."""
-    from nirl_mj.atomic import write_text
+    from nirl_mj.data.atomic import write_text
 
     data = json.loads(path.read_text()) if path.exists() else {}
     data[key] = value
@@ -385,7 +388,7 @@ def _merge_json(path: Path, key: str, value: dict) -> None:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from nirl_mj import render
+    from nirl_mj.inspect import video as render
 
     outputs = [Path(p) for p in (args.out, args.montage, args.paths) if p]
     if not outputs:
@@ -396,7 +399,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         _check_output(path, args.overwrite)
     render.check_frame(args.camera, args.width, args.height)
     render.check_backend()
-    from nirl_mj.task import make_env
+    from nirl_mj.sim.task import make_env
 
     policy, spec, seeds, what = _render_subject(args)
     env = make_env(spec)
@@ -421,23 +424,24 @@ def _cmd_render(args: argparse.Namespace) -> int:
 def _render_subject(args: argparse.Namespace) -> tuple:
     """(policy, task spec, arena seeds, description) for ``render``: a run's greedy policy on its
     held-out test arenas (as ``eval`` numbers them), or a reference policy on test-domain arenas."""
-    from nirl_mj.evaluate import domain_seeds, held_out_seeds
-    from nirl_mj.spec import apply_overrides, from_dict, load_task
+    from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds
+    from nirl_mj.sim.spec import apply_overrides, from_dict, load_task
 
     if args.episode < 0:
-        from nirl_mj.render import RenderError
+        from nirl_mj.inspect.video import RenderError
 
         raise RenderError(f"--episode {args.episode}: expected a test arena index >= 0")
     count = args.episode + max(1, args.arenas if args.paths else 1)
     if args.run:
-        from nirl_mj.learn.train import load_policy, seen_seeds
+        from nirl_mj.experiments.seeds import seen_seeds
+        from nirl_mj.experiments.training import load_policy
 
         policy, run = load_policy(args.run, args.which)
         spec = load_task(args.task) if args.task else from_dict(run["task"], f"{args.run}/run.json")
         seen = seen_seeds(run)
         seeds, what = held_out_seeds(args.seed, count, seen), f"{args.run} ({args.which} policy)"
     else:
-        from nirl_mj.policies import POLICIES
+        from nirl_mj.experts.policies import POLICIES
 
         policy, spec = POLICIES[args.policy], load_task(args.task or "navigate")
         seeds, what = domain_seeds("test", args.seed, count), f"policy {args.policy}"
@@ -445,7 +449,7 @@ def _render_subject(args: argparse.Namespace) -> tuple:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from nirl_mj.compare import json_line, markdown_table, run_compare
+    from nirl_mj.experiments.compare import json_line, markdown_table, run_compare
 
     summary = _run_experiment(args, "compare", run_compare)
     print(markdown_table(summary))
@@ -453,8 +457,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from nirl_mj.experiment import load_experiment
-    from nirl_mj.sweep import json_line, markdown_table, run_sweep
+    from nirl_mj.experiments.definition import load_experiment
+    from nirl_mj.experiments.sweep import json_line, markdown_table, run_sweep
 
     summary = _run_experiment(args, "sweep", run_sweep)
     print(markdown_table(summary, load_experiment(args.task, args.quick)))
@@ -463,8 +467,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _run_experiment(args: argparse.Namespace, kind: str, run) -> dict:
     """Loads the experiment spec, then runs (or resumes) it with a progress bar over its cells."""
-    from nirl_mj.experiment import ExperimentError, load_experiment
-    from nirl_mj.protocol import Execution
+    from nirl_mj.experiments.definition import ExperimentError, load_experiment
+    from nirl_mj.experiments.protocol import Execution
 
     experiment = load_experiment(args.task, args.quick)
     if experiment.kind != kind:
@@ -513,7 +517,7 @@ def _experiment_end(args: argparse.Namespace, summary: dict, json_line) -> int:
 
 
 def _cmd_task(args: argparse.Namespace) -> int:
-    from nirl_mj.spec import load_task
+    from nirl_mj.sim.spec import load_task
 
     spec = load_task(args.task)
     print(json.dumps({**spec.to_dict(), "step_budget": spec.step_budget}, indent=2))
@@ -559,7 +563,7 @@ def _add_task_arguments(parser: argparse.ArgumentParser, default: str | None = "
 
 def _add_experiment_arguments(parser: argparse.ArgumentParser, default: str, func) -> None:
     """The options of ``compare`` and ``sweep`` (docs/EXPERIMENTS.md)."""
-    from nirl_mj.executors import EXECUTORS
+    from nirl_mj.experiments.executors import EXECUTORS
 
     parser.add_argument("--task", default=default, metavar="SPEC",
                         help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
@@ -583,7 +587,7 @@ def _add_experiment_arguments(parser: argparse.ArgumentParser, default: str, fun
 
 def build_parser() -> argparse.ArgumentParser:
     from nirl_mj.experts import EXPERT_KINDS
-    from nirl_mj.policies import POLICIES
+    from nirl_mj.experts.policies import POLICIES
 
     parser = argparse.ArgumentParser(prog="nirl-mj", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -749,10 +753,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
-    from nirl_mj.layout import ArenaGenerationError
-    from nirl_mj.learn.train import RunError
-    from nirl_mj.spec import SpecError
-    from nirl_mj.trajectory import DatasetError
+    from nirl_mj.data.trajectory import DatasetError
+    from nirl_mj.experiments.training import RunError
+    from nirl_mj.sim.layout import ArenaGenerationError
+    from nirl_mj.sim.spec import SpecError
 
     try:
         return args.func(args)

@@ -1,4 +1,4 @@
-"""Tests for nirl_mj.arena: compiling once, applying layouts, rays, contacts, masks."""
+"""Tests for nirl_mj.sim.arena: compiling once, applying layouts, rays, contacts, masks."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from dm_control import composer, mjcf
 
-from nirl_mj.arena import PARK_Z, NavigationArena
-from nirl_mj.layout import Layout, MovingObstacle, Obstacle, advance, generate_layout
-from nirl_mj.spec import ArenaSpec, ObstacleSpec
+from nirl_mj.sim.arena import PARK_Z, NavigationArena
+from nirl_mj.sim.layout import Layout, MovingObstacle, Obstacle, advance, generate_layout
+from nirl_mj.sim.spec import ArenaSpec, ObstacleSpec
 
 SPEC = ArenaSpec(
     static_obstacles=4,

@@ -5,13 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from nirl_mj import spec
-from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.evaluate import domain_seeds, evaluate
+from nirl_mj.data.trajectory import Trajectory, save_dataset
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.seeds import domain_seeds
+from nirl_mj.experiments.training import load_checkpoint, load_policy, train
 from nirl_mj.learn.al import ProjectionStep, expectations, project
+from nirl_mj.learn.loop import NirlConfig
 from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext
 from nirl_mj.learn.mmp import mmp_objective
-from nirl_mj.learn.nirl import NirlConfig
 from nirl_mj.learn.reirl import (
     RelativeEntropyStep,
     ascent_step,
@@ -23,9 +25,8 @@ from nirl_mj.learn.reirl import (
     windowed_sums,
 )
 from nirl_mj.learn.scirl import ScirlStep, heuristic_expectations, minimise_scirl
-from nirl_mj.learn.train import load_checkpoint, load_policy, train
-from nirl_mj.task import make_env
-from nirl_mj.trajectory import Trajectory, save_dataset
+from nirl_mj.sim import spec
+from nirl_mj.sim.task import make_env
 
 # phi(s) with every D = 0, V = 1, I = 0, U = 0: the "extended" block of 25 values is 1 at V=1
 # (index 7) and at the constant (index 24), so f(s, a) = e[25 a + 7] + e[25 a + 24].

@@ -6,16 +6,18 @@ import numpy as np
 import pytest
 import rerun.chunk
 
-from nirl_mj import spec
 from nirl_mj.cli import main
-from nirl_mj.demos import ExpertConfig, collect
+from nirl_mj.data.trajectory import load_dataset
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert
 from nirl_mj.experts.noisy import NoisyExpert
-from nirl_mj.predictability import LogisticRegression, balanced_accuracy
-from nirl_mj.record import layout_of, record_demonstrations
-from nirl_mj.rollout import PolicyAgent, episode_seed, run_episode
-from nirl_mj.task import make_env
-from nirl_mj.trajectory import load_dataset
+from nirl_mj.experts.policies import PolicyAgent
+from nirl_mj.inspect.recording import layout_of, record_demonstrations
+from nirl_mj.learn.predictability import LogisticRegression, balanced_accuracy
+from nirl_mj.sim import spec
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.task import make_env
 
 # Short, fast episodes: planar drive, a 12-decision budget.
 TINY = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 12})

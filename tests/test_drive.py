@@ -1,11 +1,11 @@
-"""Tests for nirl_mj.drive: omni kinematics, action profiles, rate limiting."""
+"""Tests for nirl_mj.sim.drive: omni kinematics, action profiles, rate limiting."""
 
 import math
 
 import numpy as np
 import pytest
 
-from nirl_mj import drive
+from nirl_mj.sim import drive
 
 
 def test_constants() -> None:

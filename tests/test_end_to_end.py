@@ -7,14 +7,15 @@ it on their own training arenas (35-50 % against 0 %); seed 2's policy had
 stopped colliding but still timed out. The test uses seed 0.
 """
 
-from nirl_mj import spec
-from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.evaluate import domain_seeds, evaluate
-from nirl_mj.learn.nirl import NirlConfig
-from nirl_mj.learn.train import load_policy, train
-from nirl_mj.policies import always_forward
-from nirl_mj.task import make_env
-from nirl_mj.trajectory import save_dataset
+from nirl_mj.data.trajectory import save_dataset
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.seeds import domain_seeds
+from nirl_mj.experiments.training import load_policy, train
+from nirl_mj.experts.policies import always_forward
+from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.sim import spec
+from nirl_mj.sim.task import make_env
 
 BLOCKED = spec.replace(
     spec.load_task("navigate"),

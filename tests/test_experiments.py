@@ -12,10 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from nirl_mj import protocol
 from nirl_mj.cli import main
-from nirl_mj.executors import Cell, CellStore, ExecutorError, run_cells
-from nirl_mj.experiment import (
+from nirl_mj.experiments import protocol
+from nirl_mj.experiments.definition import (
     BUILTIN_METHODS,
     DEMO_KEYS,
     KEYS,
@@ -26,7 +25,8 @@ from nirl_mj.experiment import (
     from_dict,
     load_experiment,
 )
-from nirl_mj.stats import summarise_runs, t_interval, wilson
+from nirl_mj.experiments.executors import Cell, CellStore, ExecutorError, run_cells
+from nirl_mj.experiments.stats import summarise_runs, t_interval, wilson
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -245,8 +245,8 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     def stop(_):
         raise Stop
 
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.learn.train import train
+    from nirl_mj.experiments.training import train
+    from nirl_mj.learn.loop import NirlConfig
 
     with pytest.raises(Stop):  # killed after its first iteration's checkpoint
         train(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, on_metrics=stop)

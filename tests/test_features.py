@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from nirl_mj import features
+from nirl_mj.data import features
 
 
 @pytest.mark.parametrize(

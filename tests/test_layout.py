@@ -1,4 +1,4 @@
-"""Tests for nirl_mj.layout: generation, solvability, occupancy grid, kinematics."""
+"""Tests for nirl_mj.sim.layout: generation, solvability, occupancy grid, kinematics."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from nirl_mj.layout import (
+from nirl_mj.sim.layout import (
     ArenaGenerationError,
     Layout,
     MovingObstacle,
@@ -19,7 +19,7 @@ from nirl_mj.layout import (
     path_exists,
     time_to_wall,
 )
-from nirl_mj.spec import ArenaSpec, ObstacleSpec
+from nirl_mj.sim.spec import ArenaSpec, ObstacleSpec
 
 ROBOT_RADIUS = 0.225
 BUSY = ArenaSpec(static_obstacles=40, interior_walls=5, moving_obstacles=10)

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from nirl_mj import spec
-from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.features import N_ACTIONS
-from nirl_mj.learn.nirl import NirlConfig
+from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.data.trajectory import DatasetError, save_dataset
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.training import CHECKPOINT_FILE, RunError, load_checkpoint, load_policy, train
+from nirl_mj.learn.loop import NirlConfig
 from nirl_mj.learn.reward import RewardModel, reward_feature_names
-from nirl_mj.learn.train import CHECKPOINT_FILE, RunError, load_checkpoint, load_policy, train
-from nirl_mj.trajectory import DatasetError, save_dataset
+from nirl_mj.sim import spec
 
 TINY = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 8})
 

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 import nirl_mj
-from nirl_mj import spec as task_spec
-from nirl_mj.drive import BODY_RADIUS
+from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts.planner import PlannerExpert, arc_model, cost_field
-from nirl_mj.layout import Layout, Obstacle
-from nirl_mj.rollout import episode_seed, run_episode
+from nirl_mj.sim import spec as task_spec
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.layout import Layout, Obstacle
 
 
 def run(env, expert: PlannerExpert, seed: int = 0) -> tuple[str, list[int], np.ndarray]:

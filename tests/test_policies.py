@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from nirl_mj.policies import always_forward, rule_policy
+from nirl_mj.experts.policies import always_forward, rule_policy
 
 
 def phi(danger=(0,) * 7, region=1, detected=0, wall=(0,) * 7):

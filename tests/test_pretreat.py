@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from nirl_mj.pretreat import MapReport, map_pretreat
-from nirl_mj.trajectory import Trajectory, stack_pairs
+from nirl_mj.data.trajectory import Trajectory, stack_pairs
+from nirl_mj.learn.pretreat import MapReport, map_pretreat
 
 FWD, L30, L60, R30, R60, BACK = range(6)
 

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 import rerun.chunk
 
-from nirl_mj import spec as specs
 from nirl_mj.cli import main
-from nirl_mj.features import ACTION_NAMES
+from nirl_mj.data.features import ACTION_NAMES
+from nirl_mj.experts.policies import PolicyAgent, rule_policy
+from nirl_mj.inspect.recording import Recording, layout_of, moving_positions, record_run
 from nirl_mj.learn.reward import RewardModel, reward_feature_names
-from nirl_mj.policies import rule_policy
-from nirl_mj.record import Recording, layout_of, moving_positions, record_run
-from nirl_mj.rollout import PolicyAgent, run_episode
-from nirl_mj.task import make_env
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.task import make_env
 
 
 def tiny_task(moving: int = 2) -> specs.TaskSpec:

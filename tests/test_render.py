@@ -9,10 +9,9 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from nirl_mj import spec as specs
 from nirl_mj.cli import main
-from nirl_mj.policies import rule_policy
-from nirl_mj.render import (
+from nirl_mj.experts.policies import PolicyAgent, rule_policy
+from nirl_mj.inspect.video import (
     RenderError,
     check_frame,
     draw_overlay,
@@ -20,8 +19,9 @@ from nirl_mj.render import (
     record_video,
     snapshot_strip,
 )
-from nirl_mj.rollout import PolicyAgent, run_episode
-from nirl_mj.task import make_env
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.task import make_env
 
 
 def tiny_task(moving: int = 0) -> specs.TaskSpec:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from dm_control import composer, mjcf
 
-from nirl_mj import drive, robot
-from nirl_mj.robot import FIDELITIES, Robotino
+from nirl_mj.sim import drive, robot
+from nirl_mj.sim.robot import FIDELITIES, Robotino
 
 MODELS = Path(__file__).resolve().parents[1] / "models" / "robotino"
 CMD_DT = 0.01

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 import nirl_mj
-from nirl_mj import spec as task_spec
-from nirl_mj.drive import BODY_RADIUS
+from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts.sensor import SensorExpert
-from nirl_mj.rollout import episode_seed, run_episode
-from nirl_mj.task import Outcome
+from nirl_mj.sim import spec as task_spec
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.task import Outcome
 
 SENSING_RANGE = 5.0  # metres from the outline, the default of tasks/navigate.toml
 
@@ -112,8 +113,8 @@ def test_avoids_a_single_obstacle_on_the_straight_line():
 def test_ordinary_decisions_are_the_rule_on_phi():
     # The scores behind ordinary decisions pick exactly what rule_policy picks
     # on phi(s), backing off when it rules every arc out.
+    from nirl_mj.experts.policies import rule_policy
     from nirl_mj.experts.sensor import rule_scores
-    from nirl_mj.policies import rule_policy
 
     rng = np.random.default_rng(0)
     for _ in range(2000):
@@ -128,7 +129,7 @@ def test_ordinary_decisions_are_the_rule_on_phi():
 def test_follows_the_rule_on_phi_almost_always(navigate_env):
     # Learners see only phi(s): away from the rare escapes and memory vetoes
     # the expert must do what the rule on phi(s) does.
-    from nirl_mj.policies import rule_policy
+    from nirl_mj.experts.policies import rule_policy
 
     expert = SensorExpert()
     agree = total = 0

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from nirl_mj import spec
-from nirl_mj.spec import SpecError
+from nirl_mj.sim import spec
+from nirl_mj.sim.spec import SpecError
 
 
 def test_shipped_tasks_load():

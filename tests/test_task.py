@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from dm_env import test_utils
 
-from nirl_mj import make_env, spec
-from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.task import Outcome
+from nirl_mj import make_env
+from nirl_mj.sim import spec
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.task import Outcome
 
 FORWARD, LEFT60, BACKWARD = 0, 2, 5
 
@@ -235,14 +236,14 @@ def test_unchecked_decisions_are_the_same_physics_step_for_step(monkeypatch):
         task = spec.replace(scene(start=(20.0, 50.0)), robot={"drive": drive})
         _, fast = rollout(make_env(task, seed=0), actions)
         with monkeypatch.context() as m:
-            m.setattr("nirl_mj.task.NavigationTask._nothing_within_reach", lambda self: False)
+            m.setattr("nirl_mj.sim.task.NavigationTask._nothing_within_reach", lambda self: False)
             _, checked = rollout(make_env(task, seed=0), actions)
         np.testing.assert_array_equal(fast, checked)
 
 
 @pytest.mark.parametrize("delayed", [False, True])
 def test_observations_are_composers_own(monkeypatch, delayed):
-    # nirl_mj.environment plans the observation schedule directly for plain observables;
+    # nirl_mj.sim.environment plans the observation schedule directly for plain observables;
     # composer's general updater must see the same observations, dtypes and shapes, and
     # a delayed observable must fall back to composer's path.
     from dm_control import composer
@@ -266,7 +267,7 @@ def test_observations_are_composers_own(monkeypatch, delayed):
         spec.load_task("navigate"), arena={"static_obstacles": 30}, control={"step_budget": 12}
     )
     ours, our_spec = observations(make_env(task, seed=5))
-    monkeypatch.setattr("nirl_mj.task.Environment", composer.Environment)
+    monkeypatch.setattr("nirl_mj.sim.task.Environment", composer.Environment)
     theirs, their_spec = observations(make_env(task, seed=5))
     assert our_spec == their_spec
     for a, b in zip(ours, theirs, strict=True):

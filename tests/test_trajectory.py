@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nirl_mj import make_env, spec
-from nirl_mj.features import FEATURE_NAMES
-from nirl_mj.trajectory import (
+from nirl_mj import make_env
+from nirl_mj.data.features import FEATURE_NAMES
+from nirl_mj.data.trajectory import (
     DatasetError,
     Trajectory,
     TrajectoryRecorder,
@@ -18,6 +18,7 @@ from nirl_mj.trajectory import (
     stack_pairs,
     summarise,
 )
+from nirl_mj.sim import spec
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -212,7 +213,7 @@ def test_interrupted_write_leaves_no_partial_file(tmp_path, trajs, monkeypatch, 
 
 
 def test_atomic_writes_get_the_permissions_open_would_give(tmp_path, trajs):
-    from nirl_mj.atomic import write_text
+    from nirl_mj.data.atomic import write_text
 
     mask = os.umask(0o022)
     try:
@@ -433,7 +434,7 @@ def test_recorder_on_a_real_rollout(tmp_path):
         ts = env.step(actions[k])
         rec.step(actions[k], ts.observation)
         k += 1
-    from nirl_mj.task import Outcome
+    from nirl_mj.sim.task import Outcome
 
     traj = rec.finish(Outcome(int(ts.observation["outcome"])), 3, task, task.control.speed, "planner")
     t = len(traj)

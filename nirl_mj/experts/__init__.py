@@ -8,23 +8,9 @@ sensor-based expert only ever reads ``timestep.observation``.
 
 from __future__ import annotations
 
-from typing import Protocol
+from nirl_mj.sim.episode import Agent as Expert
 
-import dm_env
-
-
-class Expert(Protocol):
-    """The interface every demonstrator implements."""
-
-    kind: str
-    """Short name recorded with every trajectory, e.g. ``"planner"``."""
-
-    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
-        """Called after ``env.reset()``, before the first :meth:`act` of an episode."""
-
-    def act(self, timestep: dm_env.TimeStep) -> int:
-        """The action 0..5 for the current timestep."""
-
+__all__ = ["EXPERT_KINDS", "Expert", "make_expert"]
 
 EXPERT_KINDS = ("planner", "sensor", "noisy", "rule", "forward")
 """Demonstrators by name: the map-aware planner, the sensor-based expert, either
@@ -51,7 +37,7 @@ def make_expert(
             raise ValueError(f"noisy expert base {base!r}: accepted: planner, sensor, rule, forward")
         return NoisyExpert(make_expert(base), slip=slip, random=random, seed=seed)
     if kind in ("rule", "forward"):
-        from nirl_mj.rollout import PolicyAgent
+        from nirl_mj.experts.policies import PolicyAgent
 
         return PolicyAgent.named(kind)
     raise ValueError(f"unknown expert {kind!r}: accepted: {', '.join(EXPERT_KINDS)}")

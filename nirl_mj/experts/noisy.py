@@ -21,8 +21,8 @@ from __future__ import annotations
 import dm_env
 import numpy as np
 
+from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.experts import Expert
-from nirl_mj.features import N_ACTIONS
 
 _SLIPS = {0: (1, 3), 1: (2,), 2: (1,), 3: (4,), 4: (3,), 5: (5,)}
 

@@ -20,7 +20,7 @@ reachable cell's value plus a steep slope, so the field pushes out of them.
 
 Per decision (:meth:`PlannerExpert.act`) it scores every two-decision action
 sequence (36) with a kinematic model of the arcs: the exact wheel commands the
-task's :class:`~nirl_mj.drive.DriveController` would issue (profile, inverse
+task's :class:`~nirl_mj.sim.drive.DriveController` would issue (profile, inverse
 kinematics, rate limit), integrated through forward kinematics. Every
 sequence is followed by braking (action 5 until the robot's forward velocity
 changes sign, or action 0 if it was reversing), because the robot cannot stop
@@ -50,9 +50,9 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
-from nirl_mj import drive
-from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.layout import Layout, OccupancyGrid, occupancy_grid
+from nirl_mj.sim import drive
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.layout import Layout, OccupancyGrid, occupancy_grid
 
 __all__ = ["PlannerExpert", "ArcModel", "arc_model", "CostField", "cost_field"]
 
@@ -93,7 +93,7 @@ class ArcModel:
     """The arcs of the six actions at one speed and timing, cached per drive state.
 
     The drive state is the last wheel-speed command (rad/s, shape (3,)) of the
-    task's :class:`~nirl_mj.drive.DriveController`, which makes the commands of
+    task's :class:`~nirl_mj.sim.drive.DriveController`, which makes the commands of
     the next decision deterministic. States are keyed by their bytes after
     rounding to 1e-6 rad/s, so that float noise does not multiply them.
 

@@ -9,7 +9,7 @@ only phi(s), so its ordinary decisions are a function of phi(s), and memory is
 used only to keep it safe and to get it out of pockets:
 
 - **Rule on phi(s) (ordinary decisions).** The same rule as
-  :func:`nirl_mj.policies.rule_policy`: each forward arc is judged by the
+  :func:`nirl_mj.experts.policies.rule_policy`: each forward arc is judged by the
   danger levels phi shows along its chord and at its final heading (danger 5
   or more, i.e. under 2.33 m of clearance by default, rules it out); the rest
   are scored by their deviation from the centre of the target sector V plus a
@@ -53,8 +53,9 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
-from nirl_mj import drive, features
-from nirl_mj.sensing import ray_angles
+from nirl_mj.data import features
+from nirl_mj.sim import drive
+from nirl_mj.sim.sensing import ray_angles
 
 __all__ = ["SensorExpert"]
 
@@ -88,7 +89,7 @@ _COST_FREE = 1.0
 _COST_VISIT = 3.0
 _EIGHT = np.ones((3, 3), dtype=bool)
 
-# The rule on phi(s), as nirl_mj.policies.rule_policy, in table form so that
+# The rule on phi(s), as nirl_mj.experts.policies.rule_policy, in table form so that
 # one decision costs a handful of numpy calls. Directions (degrees) of the
 # sensors in phi's danger block [S1, S2, S3, S4, S7, S8, S9].
 _PHI_SENSOR_DEG = np.degrees(features.SENSOR_ANGLES[list(features.FEATURE_SENSORS)])
@@ -192,7 +193,7 @@ def _wrap_deg(angle: np.ndarray | float) -> np.ndarray | float:
 
 
 def rule_scores(phi: np.ndarray) -> np.ndarray:
-    """Scores (5,) of the forward actions under :func:`nirl_mj.policies.rule_policy`
+    """Scores (5,) of the forward actions under :func:`nirl_mj.experts.policies.rule_policy`
     (lower is better, ``inf`` ruled out); all ``inf`` means the rule backs off."""
     danger = np.max(phi[None, 0:7] - _RULE_FADE, axis=1)
     region = int(phi[7])

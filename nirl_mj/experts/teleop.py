@@ -30,7 +30,7 @@ from collections.abc import Callable
 
 import dm_env
 
-from nirl_mj.trajectory import Trajectory
+from nirl_mj.data.trajectory import Trajectory
 
 # GLFW key codes (what mujoco.viewer's key_callback receives).
 KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 262, 263, 264, 265
@@ -124,8 +124,8 @@ def teleoperate(
         )
     import mujoco.viewer
 
-    from nirl_mj.task import Outcome
-    from nirl_mj.trajectory import TrajectoryRecorder
+    from nirl_mj.data.trajectory import TrajectoryRecorder
+    from nirl_mj.sim.task import Outcome
 
     keys = KeyboardTeleop()
     task = env.task

@@ -11,7 +11,7 @@ The paper's algorithm; its step numbers are used in the comments below:
 4. Compute the optimal policy pi^(i) for the reward R = (w^(i))^T f (an RL step).
 5. Estimate mu^(i) = mu(pi^(i)) by rollouts; i <- i + 1; go to step 2.
 
-Model-free reading in the shared loop (:class:`nirl_mj.learn.nirl.Nirl`): the loop's iteration i
+Model-free reading in the shared loop (:class:`nirl_mj.learn.loop.Nirl`): the loop's iteration i
 rolls out the learner's current Boltzmann policy (eq. 8). At i = 0 that is the random initial
 network at the schedule's low eta (nearly uniform): step 1's random policy. Afterwards it is
 pi^(i), so each update does step 5 for the policy the previous update's reward produced, then
@@ -82,7 +82,7 @@ def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
 class ProjectionStep:
     """AL's reward step: theta = w / ||w||, w = mu_E - mu_bar after the projection (steps 1-3).
 
-    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
     ``al_expectations``). theta is w scaled to unit norm: the loop maps rewards affinely into
     [0, 1 - gamma], so the scale of w does not change the learner; the unit norm keeps theta
     comparable with NIRL's ||theta|| <= 1. The convergence measure is t = ||w||_2.

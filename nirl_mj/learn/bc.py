@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from nirl_mj.features import N_ACTIONS
+from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.data.trajectory import Trajectory, stack_pairs
 from nirl_mj.learn import network
-from nirl_mj.learn.nirl import greedy_policy, network_inputs
-from nirl_mj.trajectory import Trajectory, stack_pairs
+from nirl_mj.learn.loop import greedy_policy, network_inputs
 
 
 def behaviour_cloning(

@@ -1,6 +1,6 @@
 """The IRL methods that share NIRL's loop, and the rows of a comparison.
 
-Every trainable method runs the same loop (:class:`nirl_mj.learn.nirl.Nirl`:
+Every trainable method runs the same loop (:class:`nirl_mj.learn.loop.Nirl`:
 rollouts of the neural policy, a reward step, SARSA targets and
 backpropagation, selection of the kept policy); what differs is the reward
 step, chosen by ``NirlConfig.method``:
@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.trajectory import Trajectory
+    from nirl_mj.data.trajectory import Trajectory
+    from nirl_mj.learn.loop import NirlConfig
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from nirl_mj.features import N_ACTIONS
+from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.learn.reward import trajectory_pair_features
 
 __all__ = [
@@ -208,15 +208,15 @@ def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
 class MaxMarginStep:
     """NIRL's reward step (Algorithm 1, line 5): theta by projected subgradient on eq. 13.
 
-    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig`; ``matching`` chooses
+    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig`; ``matching`` chooses
     what the margin compares ("paper": eq. 11 expectations of whole trajectories;
     "occupancy": per-pair discounted sums with ``future_mix`` choosing what follows
     a deviation), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.
     """
 
     def __init__(self, config, demos: Sequence) -> None:
+        from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import pair_features, state_reward_features
-        from nirl_mj.trajectory import stack_pairs
 
         self.config = config
         self.demo_phi, self.demo_actions = stack_pairs(demos)

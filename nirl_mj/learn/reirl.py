@@ -20,7 +20,7 @@ The model-free algorithm, in the order of the paper (steps numbered in the comme
    theta <- theta + re_step * gradient (the paper; the proximal form below is the default).
 5. Output r_theta = theta^T f; then RL on it.
 
-Readings in the shared loop (:class:`nirl_mj.learn.nirl.Nirl`), each with its reason:
+Readings in the shared loop (:class:`nirl_mj.learn.loop.Nirl`), each with its reason:
 
 - The samples (step 3) are the learner's own rollouts, not a uniform policy's: the uniform policy
   crashes within a few decisions in these arenas (the 2-D prototype: 95 % of near-uniform training
@@ -56,7 +56,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import logsumexp
 
-from nirl_mj.features import N_ACTIONS
+from nirl_mj.data.features import N_ACTIONS
 
 __all__ = [
     "EXPECTATIONS",
@@ -191,13 +191,13 @@ def samples(
 class RelativeEntropyStep:
     """RE-IRL's reward step: ``re_steps`` ascent steps on g(theta) over the pooled samples.
 
-    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
     ``re_*``). ``update`` needs the ``context`` (the rollouts' policy) for pi(tau).
     """
 
     def __init__(self, config, demos: Sequence) -> None:
+        from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
-        from nirl_mj.trajectory import stack_pairs
 
         c = self.config = config
         if c.re_horizon < 1 or c.re_pool < 1:

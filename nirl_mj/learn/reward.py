@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from nirl_mj.atomic import write_text
-from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
+from nirl_mj.data.atomic import write_text
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
 
 REWARD_FEATURES = ("paper", "extended")
 

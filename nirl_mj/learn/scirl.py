@@ -85,7 +85,7 @@ def minimise_scirl(
 class ScirlStep:
     """SCIRL's reward step: theta from the demonstrations alone, computed once, then fixed.
 
-    ``config`` is a :class:`nirl_mj.learn.nirl.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
     ``margin_loss``, ``scirl_steps``, ``scirl_step_size``). The convergence measure is J at theta:
     the mean hinge of the expert's pairs (0 when every margin is met).
     """
@@ -98,8 +98,8 @@ class ScirlStep:
 
     def fit(self) -> tuple[np.ndarray, float]:
         """Steps 1-3 on the demonstrations (deterministic: a resumed run recomputes the same theta)."""
+        from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
-        from nirl_mj.trajectory import stack_pairs
 
         c = self.config
         phi, actions = stack_pairs(self.demos)

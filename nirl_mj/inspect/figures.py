@@ -20,9 +20,9 @@ matplotlib.use("Agg")  # headless: files only
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nirl_mj.atomic import write_figure  # noqa: E402
-from nirl_mj.record import layout_of  # noqa: E402
-from nirl_mj.trajectory import Trajectory  # noqa: E402
+from nirl_mj.data.atomic import write_figure  # noqa: E402
+from nirl_mj.data.trajectory import Trajectory  # noqa: E402
+from nirl_mj.inspect.recording import layout_of  # noqa: E402
 
 _COLOURS = {
     "target": "tab:green",

@@ -37,16 +37,16 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
-from nirl_mj.layout import Layout, advance, generate_layout
-from nirl_mj.spec import from_dict
-from nirl_mj.trajectory import Trajectory
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.layout import Layout, advance, generate_layout
+from nirl_mj.sim.spec import from_dict
 
 if TYPE_CHECKING:
+    from nirl_mj.inspect.reward_map import PhiGrid
     from nirl_mj.learn.reward import RewardModel
-    from nirl_mj.reward_map import PhiGrid
-    from nirl_mj.spec import TaskSpec
+    from nirl_mj.sim.spec import TaskSpec
 
 _OBSTACLE = (150, 150, 160)
 _WALL = (90, 90, 100)
@@ -304,7 +304,7 @@ def log_reward_map(
     target ahead, ``path/grid`` every target bearing x action with a colour bar, ``path/values``
     the raw (bearings, actions, y, x) tensor and ``path/info`` what the images show. Returns the
     values (K, 6, ny, nx)."""
-    from nirl_mj.reward_map import colourise, grid_figure, reward_map
+    from nirl_mj.inspect.reward_map import colourise, grid_figure, reward_map
 
     values = reward_map(grid, reward)
     finite = values[np.isfinite(values)]
@@ -404,7 +404,7 @@ class Recording:
         self, task: str | TaskSpec, arena_seed: int, reward: RewardModel, resolution: float = 2.0
     ) -> None:
         """Senses phi(s) on a grid in the arena of ``arena_seed`` and logs r_theta there."""
-        from nirl_mj.reward_map import sense_grid
+        from nirl_mj.inspect.reward_map import sense_grid
 
         grid = sense_grid(task, arena_seed, resolution)
         log_reward_map(self.rec, grid, reward, f"arena seed {arena_seed}")
@@ -457,9 +457,9 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     demonstration's arena. Returns the recording's path."""
     import json
 
+    from nirl_mj.data.trajectory import load_dataset
+    from nirl_mj.experiments.training import METRICS_FILE, REWARD_FILE, read_run
     from nirl_mj.learn.reward import RewardModel
-    from nirl_mj.learn.train import METRICS_FILE, REWARD_FILE, read_run
-    from nirl_mj.trajectory import load_dataset
 
     run_dir = Path(run_dir)
     try:

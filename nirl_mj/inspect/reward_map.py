@@ -21,11 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nirl_mj import features
-from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.layout import Layout, occupancy_grid
+from nirl_mj.data import features
 from nirl_mj.learn.reward import RewardModel
-from nirl_mj.spec import TaskSpec, load_task
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.layout import Layout, occupancy_grid
+from nirl_mj.sim.spec import TaskSpec, load_task
 
 DEFAULT_BEARINGS_DEG = (0.0, 90.0, 160.0, -90.0)
 """The target's bearing from the robot's front (degrees, counter-clockwise) of each map row."""
@@ -58,8 +58,8 @@ def sense_grid(
     from ``arena_seed``, for each heading that puts the target at one of ``bearings_deg``
     (degrees counter-clockwise from the robot's front).
     Costs about 50 us per pose (2 m cells in a 100 m arena, 4 offsets: ~0.5 s)."""
-    from nirl_mj.sensing import RangeSensors
-    from nirl_mj.task import make_env
+    from nirl_mj.sim.sensing import RangeSensors
+    from nirl_mj.sim.task import make_env
 
     spec = load_task(task)
     env = make_env(spec)

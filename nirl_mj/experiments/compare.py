@@ -3,9 +3,9 @@
 A cell is one (method, run): run r trains the method with seed ``seed + r`` on
 the experiment's demonstrations (trainable methods; resumable in
 ``OUT/runs/METHOD/SEED``) and tests its greedy policy on the T held-out arenas
-of run r, the same for every method (``nirl_mj.protocol``). Per method: average
+of run r, the same for every method (``nirl_mj.experiments.protocol``). Per method: average
 / best / worst success over the runs with a 95 % Student-t interval of the
-average (``nirl_mj.stats``), mean collision, timeout and physics-error rates,
+average (``nirl_mj.experiments.stats``), mean collision, timeout and physics-error rates,
 SPL. Outputs in OUT:
 
 - ``table.md``, ``table.csv``, ``table.png`` (bar chart next to the paper's);
@@ -22,10 +22,10 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-from nirl_mj.atomic import write_figure, write_text
-from nirl_mj.executors import Cell
-from nirl_mj.experiment import Experiment
-from nirl_mj.protocol import (
+from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.experiments.definition import Experiment
+from nirl_mj.experiments.executors import Cell
+from nirl_mj.experiments.protocol import (
     Execution,
     RunJob,
     evaluate_policy,
@@ -34,8 +34,8 @@ from nirl_mj.protocol import (
     policy_of,
     prepare,
 )
-from nirl_mj.spec import TaskSpec
-from nirl_mj.stats import summarise_runs
+from nirl_mj.experiments.stats import summarise_runs
+from nirl_mj.sim.spec import TaskSpec
 
 
 def compare_cell(job: RunJob, test_task: TaskSpec) -> dict:
@@ -165,7 +165,7 @@ def csv_table(summary: dict) -> str:
 
 def bar_chart(path: Path, summary: dict, title: str) -> Path:
     """Average success per method with its 95 % interval and best-worst range, the paper's next to it."""
-    from nirl_mj.report import plt
+    from nirl_mj.inspect.figures import plt
 
     names = list(summary["methods"])
     fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(names) + 1.5), 3.8), dpi=110)
@@ -242,9 +242,9 @@ def write_strip(out: Path, experiment: Experiment, jobs: dict, log: Callable[[st
     strip = experiment.strip
     job = jobs[strip.method, 0]
     try:
-        from nirl_mj.render import RenderError, snapshot_strip
+        from nirl_mj.inspect.video import RenderError, snapshot_strip
     except ImportError as exc:  # written by another module; absent in an old checkout
-        log(f"strip: nirl_mj.render.snapshot_strip is not available ({exc})")
+        log(f"strip: nirl_mj.inspect.video.snapshot_strip is not available ({exc})")
         return None
     try:
         policy = policy_of(job)  # a finished run: loads it

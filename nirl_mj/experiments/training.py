@@ -21,13 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from nirl_mj import spec as specs
-from nirl_mj.atomic import write_npz, write_text
-from nirl_mj.evaluate import domain_seeds
+from nirl_mj.data.atomic import write_npz, write_text
+from nirl_mj.data.trajectory import load_dataset
+from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network
-from nirl_mj.learn.nirl import Metrics, Nirl, NirlConfig, greedy_policy
+from nirl_mj.learn.loop import Metrics, Nirl, NirlConfig, greedy_policy
 from nirl_mj.learn.reward import RewardModel
-from nirl_mj.trajectory import load_dataset
+from nirl_mj.sim import spec as specs
 
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE = "policy.npz", "reward.json"
@@ -105,7 +105,7 @@ def train(
     on_metrics: Callable[[Metrics], None] | None = None,
 ) -> dict:
     """Trains (or resumes) NIRL in ``run_dir``; returns the run record."""
-    from nirl_mj.task import make_env
+    from nirl_mj.sim.task import make_env
 
     run_dir = Path(run_dir)
     demos = load_dataset(demos_path)
@@ -144,7 +144,7 @@ def train(
     def validate(net) -> float | None:
         if config.selection != "validation" or learner.iteration % config.validate_every:
             return None
-        from nirl_mj.evaluate import evaluate
+        from nirl_mj.experiments.evaluation import evaluate
 
         policy = greedy_policy(net, config.input_scaling)
         return evaluate(env, policy, first_round)[0]["success_rate"]
@@ -160,15 +160,6 @@ def train(
             on_metrics(metrics)
     selection = select(learner, env, record["validation_seeds"][config.validation_arenas :])
     return finish(run_dir, learner, {**record, "selection": selection})
-
-
-def seen_seeds(record: dict) -> set[int]:
-    """Every arena seed a run's learner saw: demonstrations, training rollouts, validation."""
-    return {
-        *record.get("demo_seeds", []),
-        *record.get("validation_seeds", []),
-        *record.get("train_seeds", []),
-    }
 
 
 def ensure_trained(
@@ -211,7 +202,7 @@ def select(learner: Nirl, env, second_round: list[int]) -> dict:
     on ties): picking the maximum of many noisy 20-arena estimates favours lucky
     ones, a fresh estimate of the few best corrects that.
     """
-    from nirl_mj.evaluate import evaluate
+    from nirl_mj.experiments.evaluation import evaluate
 
     c = learner.config
     first = learner.selected

@@ -1,9 +1,9 @@
 """The evaluation protocol: a policy on held-out arenas, success and its companions.
 
 Arena seeds come from disjoint domains: demonstrations use
-``rollout.episode_seed(seed, i)``; training, validation and test arenas use
-:func:`domain_seed` with their own domain word, and an evaluation refuses test
-seeds that a run has seen (the sets are stored in the run directory).
+``seeds.episode_seed``; training, validation and test arenas use
+``seeds.domain_seed`` with their own domain word, and an evaluation refuses test
+seeds that a run has seen (``nirl_mj.experiments.seeds``).
 
 SPL (success weighted by path length) = (1/N) sum_i S_i L_i / max(L_i, P_i),
 with P_i the path driven and L_i the straight-line distance from start to the
@@ -17,30 +17,9 @@ from collections.abc import Callable, Iterable
 import dm_env
 import numpy as np
 
-from nirl_mj.rollout import PolicyAgent, path_length, run_episode
-from nirl_mj.trajectory import Trajectory
-
-DOMAINS = {"train": 101, "validation": 102, "test": 103}
-
-
-def domain_seed(domain: str, seed: int, index: int) -> int:
-    """Arena seed ``index`` of ``domain`` ("train", "validation" or "test") for run seed ``seed``."""
-    return int(np.random.SeedSequence([DOMAINS[domain], seed, index]).generate_state(1)[0])
-
-
-def domain_seeds(domain: str, seed: int, count: int, start: int = 0) -> list[int]:
-    return [domain_seed(domain, seed, i) for i in range(start, start + count)]
-
-
-def held_out_seeds(seed: int, count: int, seen: set[int]) -> list[int]:
-    """``count`` test-arena seeds of ``seed``, skipping any arena in ``seen``."""
-    seeds, i = [], 0
-    while len(seeds) < count:
-        s = domain_seed("test", seed, i)
-        i += 1
-        if s not in seen:
-            seeds.append(s)
-    return seeds
+from nirl_mj.data.trajectory import Trajectory, path_length
+from nirl_mj.experts.policies import PolicyAgent
+from nirl_mj.sim.episode import run_episode
 
 
 def metrics_of(trajectories: list[Trajectory]) -> dict:

@@ -32,12 +32,12 @@ import dm_env
 import numpy as np
 import torch
 
+from nirl_mj.data.trajectory import Trajectory, stack_pairs
 from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext, reward_step
+from nirl_mj.learn.predictability import balanced_accuracy
 from nirl_mj.learn.reward import RewardModel, all_action_features
-from nirl_mj.predictability import balanced_accuracy
-from nirl_mj.rollout import run_episode
-from nirl_mj.trajectory import Trajectory, stack_pairs
+from nirl_mj.sim.episode import run_episode
 
 VARIANTS = ("paper", "default")
 REWARD_SOURCES = ("learned", "progress", "constant")
@@ -177,7 +177,7 @@ class NetworkAgent:
 
 
 def greedy_policy(net: network.QNetwork, scaled: bool) -> Callable[[np.ndarray], int]:
-    """The trained policy on phi(s) (eq. 9), as ``nirl_mj.policies`` policies are."""
+    """The trained policy on phi(s) (eq. 9), as ``nirl_mj.experts.policies`` policies are."""
 
     def policy(phi: np.ndarray) -> int:
         q = network.q_values(net, network_inputs(np.asarray(phi)[None], scaled))

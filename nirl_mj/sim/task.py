@@ -23,14 +23,14 @@ from dm_control import composer
 from dm_control.composer.observation import observable
 from dm_env import specs
 
-from nirl_mj import features
-from nirl_mj.arena import NavigationArena
-from nirl_mj.drive import BODY_RADIUS, DriveController, body_twist
-from nirl_mj.environment import Environment
-from nirl_mj.layout import Layout, generate_layout
-from nirl_mj.robot import Robotino
-from nirl_mj.sensing import RangeSensors, Scan
-from nirl_mj.spec import TaskSpec, load_task
+from nirl_mj.data import features
+from nirl_mj.sim.arena import NavigationArena
+from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim.environment import Environment
+from nirl_mj.sim.layout import Layout, generate_layout
+from nirl_mj.sim.robot import Robotino
+from nirl_mj.sim.sensing import RangeSensors, Scan
+from nirl_mj.sim.spec import TaskSpec, load_task
 
 _DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,
@@ -92,7 +92,7 @@ class NavigationTask(composer.Task):
         self._observables = self._make_observables()
         # Called with ``physics`` after every command period (default 10 ms) of a
         # decision when set, e.g. to render video frames at a fixed rate of simulated
-        # time (nirl_mj.render). Setting it makes every decision run command by
+        # time (nirl_mj.inspect.video). Setting it makes every decision run command by
         # command, which is the same physics step for step, only slower.
         self.command_hook: Callable[[object], None] | None = None
 
@@ -352,11 +352,11 @@ def make_env(
     """Builds the navigation environment.
 
     ``task`` is a name under ``tasks/``, a path to a TOML file, or a
-    :class:`~nirl_mj.spec.TaskSpec`; ``seed`` makes every episode's arena and
+    :class:`~nirl_mj.sim.spec.TaskSpec`; ``seed`` makes every episode's arena and
     the whole run reproducible. Observations: ``features`` (16,) phi(s),
     ``ranges`` (9,) clearance in metres (the sensing range where nothing is
     sensed), ``rays`` (9 * rays_per_sensor,) the same per ray (sensor-major,
-    ray angles in :func:`nirl_mj.sensing.ray_angles`), ``danger`` (9,) levels
+    ray angles in :func:`nirl_mj.sim.sensing.ray_angles`), ``danger`` (9,) levels
     0..7, ``wall`` (9,) flags, ``pose`` (x, y, yaw) metres/radians, ``target``
     (x, y) metres, ``target_distance`` metres, ``target_bearing`` radians in
     (-pi, pi] counter-clockwise from the robot's front,

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from nirl_mj import features
+from nirl_mj.data import features
 
 _WORLD_ONLY = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)
 

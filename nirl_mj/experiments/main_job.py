@@ -27,16 +27,17 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from nirl_mj import spec as specs
-from nirl_mj.atomic import write_text
-from nirl_mj.demos import ExpertConfig, collect
-from nirl_mj.evaluate import domain_seeds, evaluate, held_out_seeds
+from nirl_mj.data.atomic import write_text
+from nirl_mj.data.trajectory import load_dataset, save_dataset
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds
+from nirl_mj.experiments.training import ensure_trained, load_policy, read_run, validation_seeds
+from nirl_mj.experts.policies import always_forward, rule_policy
+from nirl_mj.inspect.figures import paths_plot, read_metrics, results_table, training_plots
 from nirl_mj.learn.bc import behaviour_cloning
-from nirl_mj.learn.nirl import NirlConfig
-from nirl_mj.learn.train import ensure_trained, load_policy, read_run, validation_seeds
-from nirl_mj.policies import always_forward, rule_policy
-from nirl_mj.report import paths_plot, read_metrics, results_table, training_plots
-from nirl_mj.trajectory import load_dataset, save_dataset
+from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.sim import spec as specs
 
 
 def main_job(
@@ -98,7 +99,7 @@ def main_job(
         out / "results.json", json.dumps({"task": task.name, "seed": seed, "results": results}, indent=1)
     )
     write_report(out, task, variant, results, paths, len(demo_trajectories), expert)
-    from nirl_mj.record import record_run
+    from nirl_mj.inspect.recording import record_run
 
     record_run(out / "run.rrd", demo_trajectories, read_metrics(out / "nirl"), paths,
                reward=out / "nirl" / "reward.json", map_arena=(task, test_seeds[0]))  # fmt: skip
@@ -128,7 +129,7 @@ class _Job:
     def __call__(self) -> tuple[dict, list]:
         import torch
 
-        from nirl_mj.task import make_env
+        from nirl_mj.sim.task import make_env
 
         torch.set_num_threads(1)
         return evaluate(make_env(self.task), self.policy(), self.test_seeds, self.name)

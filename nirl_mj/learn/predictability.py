@@ -16,8 +16,8 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import minimize
 
-from nirl_mj.features import N_ACTIONS, N_SENSORS
-from nirl_mj.trajectory import Trajectory, stack_pairs
+from nirl_mj.data.features import N_ACTIONS, N_SENSORS
+from nirl_mj.data.trajectory import Trajectory, stack_pairs
 
 
 def balanced_accuracy(y_true: np.ndarray, y_pred: np.ndarray) -> float:

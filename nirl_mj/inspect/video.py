@@ -50,10 +50,10 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image, ImageDraw, ImageFont  # noqa: E402
 
-from nirl_mj.features import ACTION_NAMES, FEATURE_SENSORS  # noqa: E402
-from nirl_mj.record import DANGER_COLOURS  # noqa: E402
-from nirl_mj.spec import TaskSpec, load_task  # noqa: E402
-from nirl_mj.trajectory import Trajectory, TrajectoryRecorder  # noqa: E402
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_SENSORS  # noqa: E402
+from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder  # noqa: E402
+from nirl_mj.inspect.recording import DANGER_COLOURS  # noqa: E402
+from nirl_mj.sim.spec import TaskSpec, load_task  # noqa: E402
 
 CAMERAS = ("top", "follow", "chase")
 """Camera names accepted everywhere in this module (see the module docstring)."""
@@ -267,7 +267,7 @@ def _label(frame: np.ndarray, text: str) -> np.ndarray:
 def _ready_env(task: str | TaskSpec | Any) -> Any:
     """An environment for ``task`` (a name, path or TaskSpec; an environment is re-used), reset
     once: composer compiles the physics at the first reset, and cameras must bind to that one."""
-    from nirl_mj.task import make_env
+    from nirl_mj.sim.task import make_env
 
     env = task if hasattr(task, "physics") else make_env(load_task(task))
     env.reset()
@@ -356,7 +356,7 @@ class _VideoEpisode:
         self._outcome = ""
 
     def run(self, policy: Policy, seed: int) -> Trajectory:
-        from nirl_mj.task import Outcome
+        from nirl_mj.sim.task import Outcome
 
         env = self.env
         task = env.task
@@ -407,7 +407,7 @@ def _run(
 ) -> Trajectory:
     """One episode (like ``rollout.run_episode``), calling ``on_state(decision, timestep)`` at
     every state, the reset one included."""
-    from nirl_mj.task import Outcome
+    from nirl_mj.sim.task import Outcome
 
     task = env.task
     env.random_state.seed(seed)
@@ -497,7 +497,7 @@ def snapshot_strip(
         if step in wanted:
             text = f"t = {env.physics.data.time:.1f} s (step {step})"
             if timestep.last():
-                from nirl_mj.task import Outcome
+                from nirl_mj.sim.task import Outcome
 
                 text += f": {Outcome(int(timestep.observation['outcome'])).name.lower()}"
             images.append(_label(view.render(), text))

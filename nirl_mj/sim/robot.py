@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 from dm_control import composer, mjcf
 
-from nirl_mj import drive
+from nirl_mj.sim import drive
 
 __all__ = ["FIDELITIES", "MODEL_PATH", "Robotino"]
 
-MODEL_PATH: Path = Path(__file__).resolve().parents[1] / "models" / "robotino" / "robotino.xml"
+MODEL_PATH: Path = Path(__file__).resolve().parents[2] / "models" / "robotino" / "robotino.xml"
 FIDELITIES: tuple[str, ...] = ("tyre", "rollers", "planar")
 
 # Pair friction [tangent 1, tangent 2, torsional, rolling, rolling]. The

@@ -23,10 +23,10 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from nirl_mj.atomic import write_figure, write_text
-from nirl_mj.executors import Cell, Failure
-from nirl_mj.experiment import Experiment
-from nirl_mj.protocol import (
+from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.experiments.definition import Experiment
+from nirl_mj.experiments.executors import Cell, Failure
+from nirl_mj.experiments.protocol import (
     Execution,
     RunJob,
     ensure_trained,
@@ -36,8 +36,8 @@ from nirl_mj.protocol import (
     policy_of,
     prepare,
 )
-from nirl_mj.spec import TaskSpec
-from nirl_mj.stats import summarise_runs
+from nirl_mj.experiments.stats import summarise_runs
+from nirl_mj.sim.spec import TaskSpec
 
 
 def train_cell(job: RunJob) -> dict:
@@ -166,7 +166,7 @@ def markdown_table(summary: dict, experiment: Experiment) -> str:
 
 def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     """Success (%) against obstacles, a line per speed and method; band: worst to best run (Fig. 6)."""
-    from nirl_mj.report import plt
+    from nirl_mj.inspect.figures import plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=110)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]

@@ -1,6 +1,6 @@
 """The composer Environment of this project: composer's own, with a cheaper observation schedule.
 
-The navigation task reports one physics step per control step (``nirl_mj.task``), and
+The navigation task reports one physics step per control step (``nirl_mj.sim.task``), and
 composer plans observation updates for that case along its general path (update
 intervals, delays, buffers: schedule ahead, then prune), about 50 us per decision for
 the task's 11 observables, 5-10 % of a planar-drive decision. When every enabled

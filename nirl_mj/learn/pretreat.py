@@ -34,8 +34,8 @@ from fractions import Fraction
 
 import numpy as np
 
-from nirl_mj.features import N_ACTIONS
-from nirl_mj.trajectory import Trajectory, stack_pairs
+from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.data.trajectory import Trajectory, stack_pairs
 
 
 @dataclass(frozen=True)

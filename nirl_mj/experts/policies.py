@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import dm_env
 import numpy as np
 
 Policy = Callable[[np.ndarray], int]
@@ -57,3 +58,22 @@ def rule_policy(phi: np.ndarray) -> int:
 
 POLICIES: dict[str, Policy] = {"forward": always_forward, "rule": rule_policy}
 """Reference policies by name, as the CLI accepts them."""
+
+
+class PolicyAgent:
+    """A policy on phi(s) behind the :class:`~nirl_mj.sim.episode.Agent` interface."""
+
+    def __init__(self, policy: Policy, kind: str) -> None:
+        self.policy = policy
+        self.kind = kind
+
+    @classmethod
+    def named(cls, name: str) -> PolicyAgent:
+        """One of the reference policies in :data:`POLICIES`."""
+        return cls(POLICIES[name], name)
+
+    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
+        pass
+
+    def act(self, timestep: dm_env.TimeStep) -> int:
+        return self.policy(timestep.observation["features"])

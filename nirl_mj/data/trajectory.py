@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from nirl_mj.atomic import FILE_MODE
-from nirl_mj.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_FEATURES, N_SENSORS
+from nirl_mj.data.atomic import FILE_MODE
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_FEATURES, N_SENSORS
 
 FORMAT = "nirl-mj-demos"
 """Value of the ``format`` entry that marks a file as an nirl-mj demonstration dataset."""
@@ -41,9 +41,9 @@ SUPPORTED_VERSIONS = (1,)
 """Dataset format versions :func:`load_dataset` reads."""
 
 OUTCOMES = ("target", "collision", "timeout", "physics_error")
-"""How an episode can end (lower-case names of :class:`nirl_mj.task.Outcome`, minus RUNNING)."""
+"""How an episode can end (lower-case names of :class:`nirl_mj.sim.task.Outcome`, minus RUNNING)."""
 
-# Column blocks of phi(s) (see nirl_mj.features): D (danger 0..7) for the seven
+# Column blocks of phi(s) (see nirl_mj.data.features): D (danger 0..7) for the seven
 # sensors, V (target sector 1..9), I (target detected 0/1), U (wall flags 0/1).
 _D_COLS = slice(0, 7)
 _V_COL = 7
@@ -89,7 +89,7 @@ def _frozen_array(value: Any, dtype: type, name: str) -> np.ndarray:
 
 
 def _outcome_name(outcome: Any) -> str:
-    """Accepts an outcome string or an enum such as :class:`nirl_mj.task.Outcome`
+    """Accepts an outcome string or an enum such as :class:`nirl_mj.sim.task.Outcome`
     (without importing the heavy task module)."""
     if isinstance(outcome, enum.Enum):
         return outcome.name.lower()
@@ -204,6 +204,11 @@ class Trajectory:
     def with_actions(self, actions: np.ndarray) -> Trajectory:
         """A copy with ``actions`` (T,) replaced, e.g. after relabelling."""
         return dataclasses.replace(self, actions=actions)
+
+
+def path_length(trajectory: Trajectory) -> float:
+    """Metres travelled, summed over decisions."""
+    return float(np.sum(np.hypot(*np.diff(trajectory.poses[:, :2], axis=0).T)))
 
 
 def stack_pairs(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,7 @@
 Coordinates are world metres with the arena's corner at (0, 0) and the inner
 faces of the border walls at x = 0, x = size[0], y = 0, y = size[1]; angles
 are radians counter-clockwise from +x. Nothing here imports MuJoCo: the
-:mod:`nirl_mj.arena` module shows a :class:`Layout` in a compiled model and a
+:mod:`nirl_mj.sim.arena` module shows a :class:`Layout` in a compiled model and a
 map-aware planner can reuse :func:`occupancy_grid`.
 
 Generation order (every draw through the caller's ``random_state``, so a seed
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from nirl_mj.drive import BODY_RADIUS
-from nirl_mj.spec import ArenaSpec, ObstacleSpec
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.spec import ArenaSpec, ObstacleSpec
 
 # Position redraws per obstacle and attempt before the attempt is given up:
 # with the default clear radius a draw is rejected a few % of the time, so 100

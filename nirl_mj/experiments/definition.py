@@ -4,7 +4,7 @@ An experiment file is TOML. ``kind = "compare"`` (the paper's Table I protocol,
 ``nirl-mj compare``) or ``kind = "sweep"`` (Fig. 6, ``nirl-mj sweep``) says what
 runs it; every other key is documented in docs/EXPERIMENTS.md. An unknown key,
 a wrong type or a value out of range raises :class:`ExperimentError` naming the
-file, the key and what is accepted, as task files do (``nirl_mj.spec``).
+file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
 
 A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from nirl_mj import spec as specs
-from nirl_mj.spec import SpecError
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.spec import SpecError
 
 KINDS = ("compare", "sweep")
 METHOD_KINDS = ("irl", "bc", "forward", "rule")
@@ -69,7 +69,7 @@ class MethodSpec:
 
     def nirl_config(self, shared: dict):
         """The learner's configuration: the variant's, then the experiment's ``[config]``, then ours."""
-        from nirl_mj.learn.nirl import NirlConfig
+        from nirl_mj.learn.loop import NirlConfig
 
         return NirlConfig.named(self.variant, **{**shared, **self.config, "method": self.method})
 
@@ -135,7 +135,7 @@ class Experiment:
             "demos": self.demos,
             "config": self.config,
             # The learners' resolved settings too: a training run resumes only with its own
-            # (nirl_mj.learn.train), so a change of defaults in the code is refused here, up front.
+            # (nirl_mj.experiments.training), so a change of defaults in the code is refused here, up front.
             "learners": {m.name: m.nirl_config(self.config).to_dict() for m in self.methods if m.trains},
             "obstacles": list(self.obstacles),
             "speeds": list(self.speeds),
@@ -264,8 +264,8 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
 
 
 def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
+    from nirl_mj.learn.loop import VARIANTS
     from nirl_mj.learn.methods import REWARD_STEPS
-    from nirl_mj.learn.nirl import VARIANTS
 
     base = BUILTIN_METHODS.get(name)
     if table is None:
@@ -295,7 +295,7 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
 
 def _nirl_changes(table: dict, where: str) -> dict:
     """NirlConfig field changes, each checked against the field's default type."""
-    from nirl_mj.learn.nirl import NirlConfig
+    from nirl_mj.learn.loop import NirlConfig
 
     defaults = NirlConfig()
     fields = [f.name for f in dataclasses.fields(NirlConfig) if f.name not in ("variant", "method")]

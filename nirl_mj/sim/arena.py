@@ -1,6 +1,6 @@
-"""The dm_control composer arena that shows any :class:`~nirl_mj.layout.Layout` of a spec.
+"""The dm_control composer arena that shows any :class:`~nirl_mj.sim.layout.Layout` of a spec.
 
-The MJCF is built once per :class:`~nirl_mj.spec.ArenaSpec` with pools of
+The MJCF is built once per :class:`~nirl_mj.sim.spec.ArenaSpec` with pools of
 obstacle slots; :meth:`NavigationArena.apply_layout` writes an episode's
 layout into the compiled model, so episodes never recompile.
 
@@ -40,8 +40,8 @@ import mujoco
 import numpy as np
 from dm_control import composer, mjcf
 
-from nirl_mj.layout import Layout, advance_in_place, time_to_wall
-from nirl_mj.spec import ArenaSpec
+from nirl_mj.sim.layout import Layout, advance_in_place, time_to_wall
+from nirl_mj.sim.spec import ArenaSpec
 
 __all__ = ["NavigationArena", "PARK_Z"]
 
@@ -123,7 +123,7 @@ class NavigationArena(composer.Arena):
     ``spec.static_obstacles`` + explicit cylinders cylinder slots,
     ``spec.interior_walls`` + explicit walls wall slots and
     ``spec.moving_obstacles`` mocap cylinders, enough for any layout that
-    :func:`~nirl_mj.layout.generate_layout` draws from ``spec``.
+    :func:`~nirl_mj.sim.layout.generate_layout` draws from ``spec``.
     """
 
     def _build(self, spec: ArenaSpec, name: str = "arena") -> None:  # type: ignore[override]

@@ -1,10 +1,10 @@
 """The protocol every experiment shares: output directory, demonstrations, seeds, runs, one evaluation.
 
 An experiment's output directory OUT holds ``experiment.json`` (the identity of
-what it computes: :meth:`nirl_mj.experiment.Experiment.identity`), ``demos.npz``
+what it computes: :meth:`nirl_mj.experiments.definition.Experiment.identity`), ``demos.npz``
 (one set of demonstrations for every run and method), ``runs/METHOD/SEED/``
 (training runs, ``nirl-mj train``'s layout, resumable from their checkpoints)
-and ``cells/`` (finished cells, :class:`nirl_mj.executors.CellStore`).
+and ``cells/`` (finished cells, :class:`nirl_mj.experiments.executors.CellStore`).
 
 Seeds. Run r of every method trains with seed ``experiment.seed + r`` on the same
 demonstrations and is tested on the same arenas: ``held_out_seeds(seed + r,
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from nirl_mj.experiment import Experiment, ExperimentError, MethodSpec
-from nirl_mj.spec import TaskSpec
+from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
+from nirl_mj.sim.spec import TaskSpec
 
 EXPERIMENT_FILE = "experiment.json"
 
@@ -53,7 +53,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ExperimentError(f"{out} exists and holds no nirl-mj experiment; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    from nirl_mj.atomic import write_text
+    from nirl_mj.data.atomic import write_text
 
     write_text(marker, json.dumps(identity, indent=1))
     return out
@@ -61,8 +61,8 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
 
 def ensure_demos(out: Path, experiment: Experiment, workers: int, log: Callable[[str], None]) -> Path:
     """OUT/demos.npz: ``experiment.demos`` episodes by its expert on its training task (once)."""
-    from nirl_mj.demos import ExpertConfig, collect
-    from nirl_mj.trajectory import save_dataset
+    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.experiments.demos import ExpertConfig, collect
 
     path = out / "demos.npz"
     if path.is_file():
@@ -80,7 +80,7 @@ def prepare(
 ) -> tuple[Path, dict[tuple[str, int], RunJob]]:
     """Creates or re-opens OUT (refusing another experiment), makes the demonstrations once,
     and returns OUT (absolute) with every (method, run) job."""
-    from nirl_mj.demos import default_workers
+    from nirl_mj.experiments.demos import default_workers
 
     execution.check_output(out)
     out = open_output(out, experiment)
@@ -95,8 +95,8 @@ def run_seed(experiment: Experiment, run: int) -> int:
 
 def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> list[int]:
     """The test arenas of run ``run``, shared by every method: none was seen by any learner of it."""
-    from nirl_mj.evaluate import domain_seeds, held_out_seeds
-    from nirl_mj.learn.train import validation_seeds
+    from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds
+    from nirl_mj.experiments.training import validation_seeds
 
     seed = run_seed(experiment, run)
     seen = set(demo_seeds)
@@ -127,7 +127,7 @@ class RunJob:
 
 def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[str, int], RunJob]:
     """Every (method, run) of the experiment, by (method name, run index)."""
-    from nirl_mj.trajectory import load_dataset
+    from nirl_mj.data.trajectory import load_dataset
 
     demo_seeds = {t.arena_seed for t in load_dataset(demos_path)}
     jobs = {}
@@ -144,7 +144,7 @@ def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[
 
 def read_finished(run_dir: str | Path) -> dict:
     """The record of a finished training run; a clear error if it has not finished."""
-    from nirl_mj.learn.train import read_run
+    from nirl_mj.experiments.training import read_run
 
     record = read_run(run_dir) if (Path(run_dir) / "run.json").is_file() else {}
     if "train_seeds" not in record:
@@ -154,9 +154,9 @@ def read_finished(run_dir: str | Path) -> dict:
 
 def ensure_trained(job: RunJob) -> dict:
     """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
-    record (``nirl_mj.learn.train.ensure_trained``)."""
-    from nirl_mj.learn.nirl import NirlConfig
-    from nirl_mj.learn.train import ensure_trained as ensure_run
+    record (``nirl_mj.experiments.training.ensure_trained``)."""
+    from nirl_mj.experiments.training import ensure_trained as ensure_run
+    from nirl_mj.learn.loop import NirlConfig
 
     return ensure_run(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed)
 
@@ -166,7 +166,8 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
     ``train=False`` a run that has not finished is an error (a sweep's tests only load)."""
     kind = job.method.kind
     if kind == "irl":
-        from nirl_mj.learn.train import load_policy, seen_seeds
+        from nirl_mj.experiments.seeds import seen_seeds
+        from nirl_mj.experiments.training import load_policy
 
         record = ensure_trained(job) if train else read_finished(job.run_dir)
         policy, _ = load_policy(job.run_dir)
@@ -177,11 +178,11 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
             )
         return policy
     if kind == "bc":
+        from nirl_mj.data.trajectory import load_dataset
         from nirl_mj.learn.bc import behaviour_cloning
-        from nirl_mj.trajectory import load_dataset
 
         return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed)
-    from nirl_mj.policies import always_forward, rule_policy
+    from nirl_mj.experts.policies import always_forward, rule_policy
 
     return {"forward": always_forward, "rule": rule_policy}[kind]
 
@@ -189,8 +190,8 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
 def evaluate_policy(policy: Callable, task: TaskSpec, seeds: tuple[int, ...], name: str) -> dict:
     """Success, collision, timeout and physics-error rates, SPL, mean path length (m) and test count
     of ``policy`` on the arenas ``seeds`` of ``task`` (greedy, one episode each)."""
-    from nirl_mj.evaluate import evaluate
-    from nirl_mj.task import make_env
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.sim.task import make_env
 
     metrics, _ = evaluate(make_env(task), policy, seeds, name)
     return metrics
@@ -198,7 +199,7 @@ def evaluate_policy(policy: Callable, task: TaskSpec, seeds: tuple[int, ...], na
 
 @dataclass(frozen=True)
 class Execution:
-    """Where cells run (``nirl_mj.executors.Executor``): executor name, workers, Ray address,
+    """Where cells run (``nirl_mj.experiments.executors.Executor``): executor name, workers, Ray address,
     further attempts of a failing cell."""
 
     executor: str = "local"
@@ -209,7 +210,7 @@ class Execution:
 
     def start(self, out: Path) -> CellRunner:
         """A runner storing finished cells in OUT/cells; use it as a context manager."""
-        from nirl_mj.executors import CellStore, Executor
+        from nirl_mj.experiments.executors import CellStore, Executor
 
         return CellRunner(
             Executor(self.executor, self.workers, self.address, self.retries),
@@ -245,7 +246,7 @@ class CellRunner:
         stored cells only, nothing run)."""
         if not self.report_only:
             return self.executor.run(cells, self.store, on_done)
-        from nirl_mj.executors import Report
+        from nirl_mj.experiments.executors import Report
 
         report = Report()
         report.results = {c.id: r for c in cells if (r := self.store.load(c.id)) is not None}

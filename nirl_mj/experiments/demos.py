@@ -13,10 +13,11 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert
-from nirl_mj.rollout import episode_seed, run_episode
-from nirl_mj.spec import TaskSpec
-from nirl_mj.trajectory import Trajectory
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.spec import TaskSpec
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class _Runner:
     """One environment and one expert, re-used for many episodes."""
 
     def __init__(self, task: TaskSpec, expert: ExpertConfig, seed: int) -> None:
-        from nirl_mj.task import make_env
+        from nirl_mj.sim.task import make_env
 
         self.env = make_env(task)
         self.expert = make_expert(**asdict(expert))

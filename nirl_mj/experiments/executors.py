@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from nirl_mj.atomic import write_text
+from nirl_mj.data.atomic import write_text
 
 EXECUTORS = ("serial", "local", "ray")
 RAY_MISSING = "the ray executor needs Ray: pip install 'nirl-mj[ray]' (or pip install 'ray>=2.9')"
@@ -142,7 +142,7 @@ class Executor:
         address: str | None = None,
         retries: int = 2,
     ) -> None:
-        from nirl_mj.demos import default_workers
+        from nirl_mj.experiments.demos import default_workers
 
         if executor not in EXECUTORS:
             raise ExecutorError(f"unknown executor {executor!r}; accepted: {', '.join(EXECUTORS)}")

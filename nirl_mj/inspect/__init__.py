@@ -1,0 +1,1 @@
+"""What a person looks at: Rerun recordings, offscreen videos and montages, reward maps, report figures."""

@@ -1,0 +1,64 @@
+"""The one episode loop: an agent drives the robot for one episode in a seeded arena.
+
+Rollouts, evaluation, demonstrations, videos and teleoperation all run episodes
+through :func:`run_episode`; what differs between them is the agent and the
+per-step hook (a video grabs frames, teleoperation may abandon an episode).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import dm_env
+
+from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder
+from nirl_mj.sim.task import Outcome
+
+
+class Agent(Protocol):
+    """Who drives: a demonstrator, a reference policy or a learner's policy."""
+
+    kind: str
+    """Short name recorded with every trajectory, e.g. ``"planner"``."""
+
+    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
+        """Called after ``env.reset()``, before the first :meth:`act` of an episode."""
+
+    def act(self, timestep: dm_env.TimeStep) -> int | None:
+        """The action 0..5 for the current timestep (None: end the episode here, unrecorded)."""
+
+
+StepHook = Callable[[int, dm_env.TimeStep, "int | None"], None]
+"""``on_step(step, timestep, action)``: called with the first timestep (step 0, action None) and
+after every decision with the action that led to it; ``env.physics`` shows the state."""
+
+
+class EpisodeAbandoned(Exception):
+    """An agent returned no action: the episode ends without a trajectory (teleoperation's discard)."""
+
+
+def run_episode(
+    env: dm_env.Environment, agent: Agent, seed: int, on_step: StepHook | None = None
+) -> Trajectory:
+    """Runs ``agent`` for one episode in the arena of ``seed`` and returns what it did.
+
+    Raises :class:`EpisodeAbandoned` if the agent returns None instead of an action."""
+    spec = env.task.spec
+    env.random_state.seed(seed)
+    timestep = env.reset()
+    agent.reset(env, timestep)
+    recorder = TrajectoryRecorder(spec.control.decision_period)
+    recorder.start(timestep.observation)
+    if on_step:
+        on_step(0, timestep, None)
+    while not timestep.last():
+        action = agent.act(timestep)
+        if action is None:
+            raise EpisodeAbandoned(f"{agent.kind} ended the episode in arena {seed}")
+        timestep = env.step(action)
+        recorder.step(action, timestep.observation)
+        if on_step:
+            on_step(len(recorder), timestep, action)
+    outcome = Outcome(int(timestep.observation["outcome"])).name.lower()
+    return recorder.finish(outcome, seed, spec, spec.control.speed, agent.kind)
