@@ -25,7 +25,7 @@ from pathlib import Path
 
 from nirl_mj.experiments import evaluation as evaluation
 from nirl_mj.learn import train as training
-from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim import task as tasks
 
@@ -76,7 +76,9 @@ def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
         task = specs.load_task("navigate")
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            training.train(Path(tmp) / "run", task, demos, NirlConfig.default(episodes=episodes), seed)
+            training.train(
+                Path(tmp) / "run", task, demos, LearnerConfig.preset("default", episodes=episodes), seed
+            )
             total = time.perf_counter() - t0
     finally:
         tasks.make_env, evaluation.evaluate = make_env, evaluate

@@ -95,10 +95,10 @@ def train_once(demos: Path, out: Path, episodes: int, record: bool) -> dict:
     """One training run; with ``record`` the CLI's recording path (per-iteration scalars, then
     ``finish_training``). Returns wall seconds of training and of the recording's parts."""
     from nirl_mj.experiments.training import train
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.learn.config import LearnerConfig
 
     spec = load_task("navigate")
-    config = NirlConfig.named("default", episodes=episodes)
+    config = LearnerConfig.preset("default", episodes=episodes)
     timed = None
     if record:
         from nirl_mj.inspect.recording import Recording

@@ -87,9 +87,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     spec = apply_overrides(load_task(args.task), args.set)
     if args.rerun:
         _check_output(Path(args.rerun), args.overwrite)
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.learn.config import LearnerConfig
 
-    iterations = args.episodes or NirlConfig.named(args.variant).episodes
+    iterations = args.episodes or LearnerConfig.preset(args.variant).loop.episodes
     bar = tqdm(total=3 * iterations, unit="iteration", file=sys.stderr, disable=args.quiet,
                desc="NIRL and 2 controls")  # fmt: skip
 
@@ -234,8 +234,9 @@ def _cmd_teleop(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from nirl_mj.experiments.training import read_run, train
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.data.rundir import RunDir
+    from nirl_mj.experiments.training import run_config, train
+    from nirl_mj.learn.config import LearnerConfig
     from nirl_mj.sim.spec import SpecError, apply_overrides, from_dict, load_task
 
     if args.resume:
@@ -246,21 +247,21 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 f"--resume continues with the run's saved settings; {', '.join(changed)} cannot change them "
                 "(train a new run with another --out instead)"
             )
-        saved = read_run(args.out)  # continue with exactly the saved task and configuration
+        saved = RunDir(args.out).read_record()  # continue with exactly the saved task and configuration
         spec = from_dict(saved["task"], f"{args.out}/run.json")
-        config = NirlConfig(**saved["config"])
+        config = run_config(saved)
         demos, seed = args.demos or saved["demos"], saved["seed"]
     else:
         if not args.demos:
             raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
         spec = apply_overrides(load_task(args.task), args.set)
         changes = {"episodes": args.episodes} if args.episodes else {}
-        config = NirlConfig.named(args.variant, **changes, **_config_overrides(args.config))
+        config = LearnerConfig.preset(args.variant, **changes, **_config_overrides(args.config))
         demos, seed = args.demos, args.seed
-    done = _iterations_done(args.out) if args.resume else 0
+    done = RunDir(args.out).iterations_done() if args.resume else 0
     recording = _open_recording(args.rerun, args.overwrite)
     with tqdm(
-        total=config.episodes, initial=done, unit="episode", file=sys.stderr, disable=args.quiet
+        total=config.loop.episodes, initial=done, unit="episode", file=sys.stderr, disable=args.quiet
     ) as bar:
 
         def progress(m) -> None:
@@ -282,37 +283,32 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
         print(f"wrote {finish_training(recording, args.out, demos)}")
     print(
-        f"trained {record['iterations']} iterations ({config.variant} variant); selected policy: iteration "
+        f"trained {record['iterations']} iterations ({config.loop.variant} variant); selected policy: iteration "
         f"{record['selected_iteration']}; run in {args.out}"
     )
     return 0
 
 
 def _config_overrides(assignments: list[str]) -> dict:
-    """``KEY=VALUE`` pairs for NirlConfig (VALUE in TOML syntax), checked against its fields."""
-    import dataclasses
+    """``KEY=VALUE`` learner settings (VALUE in TOML syntax; a bare word is a string), type-checked."""
     import tomllib
 
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.learn.config import checked_changes
     from nirl_mj.sim.spec import SpecError
 
-    fields = {f.name: f.type for f in dataclasses.fields(NirlConfig)}
     out = {}
     for text in assignments:
         key, sep, value = text.partition("=")
-        key = key.strip()
-        if not sep or key not in fields:
-            raise SpecError(f"--config {text!r}: expected KEY=VALUE with KEY one of: {', '.join(fields)}")
+        if not sep:
+            raise SpecError(f"--config {text!r}: expected KEY=VALUE, e.g. reward_source=progress")
         try:
-            out[key] = tomllib.loads(f"v = {value.strip()}")["v"]
+            out[key.strip()] = tomllib.loads(f"v = {value.strip()}")["v"]
         except tomllib.TOMLDecodeError:
-            out[key] = value.strip()
-    return out
-
-
-def _iterations_done(run_dir: str) -> int:
-    path = Path(run_dir) / "metrics.jsonl"
-    return len(path.read_text().splitlines()) if path.exists() else 0
+            out[key.strip()] = value.strip()
+    try:
+        return checked_changes(out, "--config", exclude=("variant",))
+    except ValueError as exc:
+        raise SpecError(str(exc)) from None
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -354,10 +350,12 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         f"{metrics['mean_path_length']:.1f} m  SPL {metrics['spl']:.2f}"
     )
     if args.rerun:
+        from nirl_mj.data.rundir import RunDir
         from nirl_mj.inspect.recording import record_evaluation
+        from nirl_mj.learn.reward import RewardModel
 
-        reward = Path(args.run) / "reward.json" if args.run else None
-        reward = reward if reward and reward.is_file() else None
+        run_dir = RunDir(args.run) if args.run else None
+        reward = RewardModel.from_dict(run_dir.read_reward()) if run_dir and run_dir.has_reward else None
         record_evaluation(args.rerun, name, trajectories, reward, (spec, seeds[0]) if reward else None)
         print(f"wrote {args.rerun}")
     if args.json:
@@ -753,8 +751,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
+    from nirl_mj.data.rundir import RunError
     from nirl_mj.data.trajectory import DatasetError
-    from nirl_mj.experiments.training import RunError
     from nirl_mj.sim.layout import ArenaGenerationError
     from nirl_mj.sim.spec import SpecError
 

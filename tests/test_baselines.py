@@ -5,17 +5,17 @@ import math
 import numpy as np
 import pytest
 
+from nirl_mj.data.rundir import RunDir
 from nirl_mj.data.trajectory import Trajectory, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
-from nirl_mj.experiments.training import load_checkpoint, load_policy, train
-from nirl_mj.learn.al import ProjectionStep, expectations, project
-from nirl_mj.learn.loop import NirlConfig
-from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext
+from nirl_mj.experiments.training import load_policy, train
+from nirl_mj.learn.al import expectations, project
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext, reward_step
 from nirl_mj.learn.mmp import mmp_objective
 from nirl_mj.learn.reirl import (
-    RelativeEntropyStep,
     ascent_step,
     dual_gradient,
     hoeffding_widths,
@@ -24,7 +24,7 @@ from nirl_mj.learn.reirl import (
     soft_threshold,
     windowed_sums,
 )
-from nirl_mj.learn.scirl import ScirlStep, heuristic_expectations, minimise_scirl
+from nirl_mj.learn.scirl import heuristic_expectations, minimise_scirl
 from nirl_mj.sim import spec
 from nirl_mj.sim.task import make_env
 
@@ -58,7 +58,7 @@ def uniform_context() -> RolloutContext:
 def test_baselines_are_registered():
     assert {"nirl", "al", "re", "scirl"} <= set(REWARD_STEPS)
     with pytest.raises(ValueError, match="unknown method"):
-        NirlConfig.default(method="gail")
+        LearnerConfig.preset("default", method="gail")
 
 
 # -- apprenticeship learning (Abbeel & Ng 2004, projection) ----------------------------------------
@@ -87,7 +87,7 @@ def test_al_expectations_whole_trajectory_and_suffix_by_hand():
 
 
 def test_al_step_runs_steps_1_and_2_on_rollouts():
-    step = ProjectionStep(NirlConfig.default(method="al", gamma=0.5), [fake([0, 0])])
+    step = reward_step(LearnerConfig.preset("default", method="al", gamma=0.5), [fake([0, 0])])
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))  # eq. 11: 1 + 0.5
     # step 1: the first rollouts' mu^0 = mu_bar^0; w = mu_E - mu^0 = (1.5, -1) per component pair
     theta, t = step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
@@ -101,7 +101,7 @@ def test_al_step_runs_steps_1_and_2_on_rollouts():
     np.testing.assert_allclose(theta, pattern([10 / 9, -2 / 9, -7 / 9, 0, 0, 0]) / t)
     assert np.linalg.norm(theta) == pytest.approx(1.0)
     # a checkpoint restores mu_bar exactly
-    other = ProjectionStep(NirlConfig.default(method="al", gamma=0.5), [fake([0, 0])])
+    other = reward_step(LearnerConfig.preset("default", method="al", gamma=0.5), [fake([0, 0])])
     other.load_state(saved)
     np.testing.assert_array_equal(other.update(np.zeros(150), [fake([2, 0])], 1, np.zeros(2))[0], theta)
 
@@ -146,8 +146,10 @@ def test_re_gradient_with_importance_weights_by_hand():
 
 
 def test_re_step_importance_weights_from_the_rollout_policy():
-    config = NirlConfig.default(method="re", gamma=0.5, re_steps=1, re_step=1.0, re_confidence=0.0)
-    step = RelativeEntropyStep(config, [fake([0, 0])])
+    config = LearnerConfig.preset(
+        "default", method="re", gamma=0.5, re_steps=1, re_step=1.0, re_confidence=0.0
+    )
+    step = reward_step(config, [fake([0, 0])])
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))
     with pytest.raises(ValueError, match="RolloutContext"):
         step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
@@ -163,8 +165,8 @@ def test_re_step_importance_weights_from_the_rollout_policy():
     np.testing.assert_allclose(step.pool[1][1], [math.log(5 / 9)])
     np.testing.assert_allclose(step.pool[1][0], [pattern([1.0, 0.5, 0, 0, 0, 0])])
     # "suffix": one sample per pair
-    suffix = RelativeEntropyStep(
-        NirlConfig.default(method="re", gamma=0.5, re_expectations="suffix"), [fake([0, 0])]
+    suffix = reward_step(
+        LearnerConfig.preset("default", method="re", gamma=0.5, re_expectations="suffix"), [fake([0, 0])]
     )
     np.testing.assert_allclose(suffix.mu_e, pattern([1.25, 0, 0, 0, 0, 0]))  # (1.5 + 1) / 2
 
@@ -199,7 +201,7 @@ def test_scirl_subgradient_and_normalised_step_by_hand():
 
 def test_scirl_reward_is_fitted_once_and_prefers_the_experts_actions():
     demos = [fake([0, 0, 3]), fake([3, 0])]
-    step = ScirlStep(NirlConfig.default(method="scirl", gamma=0.5), demos)
+    step = reward_step(LearnerConfig.preset("default", method="scirl", gamma=0.5), demos)
     theta, j = step.update(np.zeros(150), [], 0, np.zeros(5))
     assert np.linalg.norm(theta) <= 1.0 + 1e-12
     again, _ = step.update(theta, [fake([5])], 7, np.zeros(5))  # the rollouts are not read
@@ -237,7 +239,7 @@ def open_demos(tmp_path_factory):
 
 @pytest.mark.parametrize("method", ["al", "re", "scirl"])
 def test_resume_of_a_baseline_run_ends_with_the_uninterrupted_weights(tmp_path, tiny_demos, method):
-    config = NirlConfig.default(
+    config = LearnerConfig.preset("default",
         method=method, episodes=3, trajectories_per_episode=2, validation_arenas=2, validate_every=2,
         replay_episodes=2, re_pool=2,
     )  # fmt: skip
@@ -250,7 +252,7 @@ def test_resume_of_a_baseline_run_ends_with_the_uninterrupted_weights(tmp_path, 
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path / "split", TINY, tiny_demos, config, seed=1, on_metrics=interrupt)
     train(tmp_path / "split", TINY, tiny_demos, config, seed=1, resume=True)
-    whole, split = load_checkpoint(tmp_path / "whole"), load_checkpoint(tmp_path / "split")
+    whole, split = RunDir(tmp_path / "whole").read_checkpoint(), RunDir(tmp_path / "split").read_checkpoint()
     for key in ("net_W1", "net_W2", "theta", "thetas"):
         np.testing.assert_array_equal(whole[key], split[key])
     assert np.abs(whole["theta"]).sum() > 0  # the reward step did run
@@ -279,7 +281,7 @@ def random_progress():
 
 @pytest.mark.parametrize("method", ["al", "re", "scirl"])
 def test_a_short_baseline_run_beats_the_uniform_random_policy(tmp_path, open_demos, random_progress, method):
-    config = NirlConfig.default(
+    config = LearnerConfig.preset("default",
         method=method, episodes=10, trajectories_per_episode=4, validation_arenas=3, validate_every=1,
         final_candidates=1,
     )  # fmt: skip

@@ -13,7 +13,7 @@ from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.experiments.training import load_policy, train
 from nirl_mj.experts.policies import always_forward
-from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.sim import spec
 from nirl_mj.sim.task import make_env
 
@@ -31,8 +31,13 @@ BLOCKED = spec.replace(
 def test_tiny_nirl_run_beats_always_forward_on_its_own_arenas(tmp_path):
     demos = tmp_path / "demos.npz"
     save_dataset(demos, collect(BLOCKED, ExpertConfig("sensor"), episodes=8, seed=0))
-    config = NirlConfig.default(
-        episodes=20, trajectories_per_episode=10, validation_arenas=10, validate_every=2, replay_episodes=5
+    config = LearnerConfig.preset(
+        "default",
+        episodes=20,
+        trajectories_per_episode=10,
+        validation_arenas=10,
+        validate_every=2,
+        replay_episodes=5,
     )
     train(tmp_path / "run", BLOCKED, demos, config, seed=0)
     policy, record = load_policy(tmp_path / "run")

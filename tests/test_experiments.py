@@ -77,7 +77,7 @@ def test_shipped_experiments_load_full_and_quick():
                      "SCIRL": (79, 88, 60)}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
     assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
-    assert quick.methods[1].nirl_config(quick.config).variant == "paper"
+    assert quick.methods[1].learner_config(quick.config).loop.variant == "paper"
     fig6 = load_experiment(ROOT / "tasks" / "fig6.toml")
     assert (fig6.kind, fig6.obstacles, fig6.speeds) == ("sweep", (5, 10, 20, 30, 40, 50), (1.0, 2.0, 3.0))
     corner = fig6.cell_task(50, 3.0)
@@ -136,9 +136,12 @@ def test_own_methods_change_the_learner():
     e = from_dict({"kind": "compare", "methods": ["NIRL", "low-margin", "BC"], "config": {"episodes": 7},
                    "method": {"low-margin": {"variant": "default", "config": {"margin_loss": 0.05}},
                               "BC": {"kind": "bc"}}})  # fmt: skip
-    config = e.methods[1].nirl_config(e.config)
-    assert (config.margin_loss, config.episodes, config.method) == (0.05, 7, "nirl")
-    assert e.methods[0].nirl_config(e.config).margin_loss == 0.1 and e.methods[2] == BUILTIN_METHODS["BC"]
+    config = e.methods[1].learner_config(e.config)
+    assert (config.loop.margin_loss, config.loop.episodes, config.loop.method) == (0.05, 7, "nirl")
+    assert (
+        e.methods[0].learner_config(e.config).loop.margin_loss == 0.1
+        and e.methods[2] == BUILTIN_METHODS["BC"]
+    )
 
 
 def test_every_experiment_key_is_documented_in_docs_experiments_md():
@@ -246,10 +249,17 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
         raise Stop
 
     from nirl_mj.experiments.training import train
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.learn.config import LearnerConfig
 
     with pytest.raises(Stop):  # killed after its first iteration's checkpoint
-        train(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed, on_metrics=stop)
+        train(
+            job.run_dir,
+            job.task,
+            job.demos_path,
+            LearnerConfig.from_dict(job.config),
+            job.seed,
+            on_metrics=stop,
+        )
     assert not (Path(job.run_dir) / "policy.npz").exists()
     policy = Path(job.run_dir) / "policy.npz"
     protocol.ensure_trained(job)

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 
 from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.data.rundir import CHECKPOINT_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import DatasetError, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
-from nirl_mj.experiments.training import CHECKPOINT_FILE, RunError, load_checkpoint, load_policy, train
-from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.experiments.training import load_policy, train
+from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.reward import RewardModel, reward_feature_names
 from nirl_mj.sim import spec
 
@@ -18,7 +19,7 @@ def tiny_config(**changes):
     base = dict(
         episodes=3, trajectories_per_episode=2, validation_arenas=2, validate_every=2, replay_episodes=2
     )
-    return NirlConfig.default(**{**base, **changes})
+    return LearnerConfig.preset("default", **{**base, **changes})
 
 
 @pytest.fixture(scope="module")
@@ -29,13 +30,13 @@ def demos(tmp_path_factory):
 
 
 def weights(run_dir):
-    state = load_checkpoint(run_dir)
+    state = RunDir(run_dir).read_checkpoint()
     return state["net_W1"], state["net_W2"], state["theta"]
 
 
 @pytest.mark.parametrize("variant", ["default", "paper"])
 def test_same_seed_gives_identical_weights(tmp_path, demos, variant):
-    config = NirlConfig.named(variant, episodes=2, trajectories_per_episode=2, validation_arenas=2)
+    config = LearnerConfig.preset(variant, episodes=2, trajectories_per_episode=2, validation_arenas=2)
     for name in ("a", "b"):
         train(tmp_path / name, TINY, demos, config, seed=3)
     for x, y in zip(weights(tmp_path / "a"), weights(tmp_path / "b"), strict=True):
@@ -54,7 +55,7 @@ def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos):
 
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path / "split", TINY, demos, config, seed=1, on_metrics=interrupt)
-    assert int(load_checkpoint(tmp_path / "split")["iteration"]) == 2
+    assert int(RunDir(tmp_path / "split").read_checkpoint()["iteration"]) == 2
     train(tmp_path / "split", TINY, demos, config, seed=1, resume=True)
     for x, y in zip(weights(tmp_path / "whole"), weights(tmp_path / "split"), strict=True):
         np.testing.assert_array_equal(x, y)
@@ -96,7 +97,7 @@ def test_trained_policy_and_named_reward_are_usable(tmp_path, demos):
     policy, record = load_policy(run)
     assert 0 <= policy(np.zeros(16, dtype=np.float32) + np.eye(16)[7]) < N_ACTIONS
     assert record["task"] == TINY.to_dict()
-    reward = RewardModel.load(run / "reward.json")
+    reward = RewardModel.from_dict(RunDir(run).read_reward())
     assert set(reward.named()) == set(reward_feature_names("extended"))
     phi = np.array([[3, 0, 0, 0, 0, 0, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0]], dtype=np.float32)
     r_all = reward.rewards_all_actions(phi)

@@ -8,7 +8,7 @@ file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
 
 A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
-variant of ``NirlConfig``), behaviour cloning (``"bc"``), or a reference policy
+preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), or a reference policy
 (``"forward"``, ``"rule"``). The built-in ones are :data:`BUILTIN_METHODS`;
 ``[method.NAME]`` tables add others or change built-in ones.
 
@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.spec import SpecError
 
@@ -54,7 +55,7 @@ class ExperimentError(SpecError):
 @dataclass(frozen=True)
 class MethodSpec:
     """One row of the results. ``variant``/``method``/``config`` matter for ``kind = "irl"`` only:
-    ``NirlConfig.named(variant, method=method, **experiment config, **config)``."""
+    ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``."""
 
     name: str
     kind: str
@@ -67,11 +68,9 @@ class MethodSpec:
         """Whether this method has training runs on disk (``OUT/runs/NAME/SEED``)."""
         return self.kind == "irl"
 
-    def nirl_config(self, shared: dict):
+    def learner_config(self, shared: dict) -> LearnerConfig:
         """The learner's configuration: the variant's, then the experiment's ``[config]``, then ours."""
-        from nirl_mj.learn.loop import NirlConfig
-
-        return NirlConfig.named(self.variant, **{**shared, **self.config, "method": self.method})
+        return LearnerConfig.preset(self.variant, **{**shared, **self.config, "method": self.method})
 
 
 BUILTIN_METHODS = {
@@ -114,7 +113,7 @@ class Experiment:
     methods: tuple[MethodSpec, ...]
     expert: str
     demos: int
-    config: dict  # NirlConfig changes for every "irl" method
+    config: dict  # learner config changes for every "irl" method
     paper: dict  # method -> {"avg", "best", "worst"} in percent
     strip: StripSpec | None
     obstacles: tuple[int, ...]
@@ -136,7 +135,7 @@ class Experiment:
             "config": self.config,
             # The learners' resolved settings too: a training run resumes only with its own
             # (nirl_mj.experiments.training), so a change of defaults in the code is refused here, up front.
-            "learners": {m.name: m.nirl_config(self.config).to_dict() for m in self.methods if m.trains},
+            "learners": {m.name: m.learner_config(self.config).to_dict() for m in self.methods if m.trains},
             "obstacles": list(self.obstacles),
             "speeds": list(self.speeds),
         }
@@ -188,7 +187,7 @@ def from_dict(
     demos = _table(data.get("demos", {}), where("demos"))
     _known(demos, DEMO_KEYS, where("demos"), "")
     expert = _choice(demos.get("expert", "sensor"), EXPERTS, f"{where('demos')}.expert")
-    config = _nirl_changes(_table(data.get("config", {}), where("config")), where("config"))
+    config = _learner_changes(_table(data.get("config", {}), where("config")), where("config"))
     methods = _methods(data, config, where)
 
     strip = None
@@ -264,9 +263,6 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
 
 
 def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
-    from nirl_mj.learn.loop import VARIANTS
-    from nirl_mj.learn.methods import REWARD_STEPS
-
     base = BUILTIN_METHODS.get(name)
     if table is None:
         method = base
@@ -275,40 +271,32 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         _known(table, METHOD_KEYS, where, "")
         default = base or MethodSpec(name, "irl")
         kind = _choice(table.get("kind", default.kind), METHOD_KINDS, f"{where}.kind")
-        changes = _nirl_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")
+        changes = _learner_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")
         if kind != "irl" and (changes or "variant" in table or "method" in table):
             raise ExperimentError(f'{where}: variant, method and config apply to kind = "irl" only')
         method = MethodSpec(
             name,
             kind,
             _choice(table.get("variant", default.variant), VARIANTS, f"{where}.variant"),
-            _choice(table.get("method", default.method), tuple(REWARD_STEPS), f"{where}.method"),
+            _choice(table.get("method", default.method), METHODS, f"{where}.method"),
             changes,
         )
     if method.trains:
         try:
-            method.nirl_config(config)
+            method.learner_config(config)
         except (TypeError, ValueError) as exc:
             raise ExperimentError(f"{where}: {exc}") from None
     return method
 
 
-def _nirl_changes(table: dict, where: str) -> dict:
-    """NirlConfig field changes, each checked against the field's default type."""
-    from nirl_mj.learn.loop import NirlConfig
-
-    defaults = NirlConfig()
-    fields = [f.name for f in dataclasses.fields(NirlConfig) if f.name not in ("variant", "method")]
-    _known(table, fields, where, "")
-    out = {}
-    for key, value in table.items():
-        kind = type(getattr(defaults, key))
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if type(value) is not kind:
-            raise ExperimentError(f"{where}.{key} = {value!r}: expected a {kind.__name__}")
-        out[key] = value
-    return out
+def _learner_changes(table: dict, where: str) -> dict:
+    """Learner config changes (flat field names), each checked against the field's default type."""
+    exclude = ("variant", "method")
+    _known(table, [k for k in LearnerConfig.field_defaults() if k not in exclude], where, "")
+    try:
+        return checked_changes(table, where, exclude)
+    except ValueError as exc:
+        raise ExperimentError(str(exc)) from None
 
 
 def _paper(table: Any, methods: tuple[MethodSpec, ...], where: str) -> dict:

@@ -24,19 +24,21 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
+from nirl_mj.data.rundir import RunDir
 from nirl_mj.data.trajectory import load_dataset, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
-from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds
-from nirl_mj.experiments.training import ensure_trained, load_policy, read_run, validation_seeds
+from nirl_mj.experiments.seeds import held_out_seeds
+from nirl_mj.experiments.training import ensure_trained, load_policy, planned_seeds
 from nirl_mj.experts.policies import always_forward, rule_policy
 from nirl_mj.inspect.figures import paths_plot, read_metrics, results_table, training_plots
 from nirl_mj.learn.bc import behaviour_cloning
-from nirl_mj.learn.loop import NirlConfig
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.reward import RewardModel
 from nirl_mj.sim import spec as specs
 
 
@@ -71,18 +73,15 @@ def main_job(
         demo_trajectories = collect(task, ExpertConfig(expert, seed=seed), demos, seed, workers)
         save_dataset(demos_path, demo_trajectories)
 
-    config = NirlConfig.named(variant, **({"episodes": episodes} if episodes else {}))
+    config = LearnerConfig.preset(variant, **({"episodes": episodes} if episodes else {}))
     runs = {
         "NIRL": ("nirl", config),
-        "control: SARSA on progress": ("control_progress", replace(config, reward_source="progress")),
-        "control: constant reward": ("control_constant", replace(config, reward_source="constant")),
+        "control: SARSA on progress": ("control_progress", config.replace(reward_source="progress")),
+        "control: constant reward": ("control_constant", config.replace(reward_source="constant")),
     }
     # The test arenas: test-domain seeds none of which was seen in the demonstrations,
     # the training rollouts or the validation (the planned seeds of every run).
-    k = config.trajectories_per_episode
-    seen = {t.arena_seed for t in demo_trajectories}
-    seen |= set(validation_seeds(config, seed))
-    seen |= set(domain_seeds("train", seed, config.episodes * k))
+    seen = {t.arena_seed for t in demo_trajectories} | planned_seeds(config, seed)
     test_seeds = held_out_seeds(seed, tests, seen)
     jobs = [
         _Job(name, task, test_seeds, seed, out / folder, demos_path, cfg)
@@ -102,7 +101,7 @@ def main_job(
     from nirl_mj.inspect.recording import record_run
 
     record_run(out / "run.rrd", demo_trajectories, read_metrics(out / "nirl"), paths,
-               reward=out / "nirl" / "reward.json", map_arena=(task, test_seeds[0]))  # fmt: skip
+               reward=RewardModel.from_dict(RunDir(out / "nirl").read_reward()), map_arena=(task, test_seeds[0]))  # fmt: skip
     return results
 
 
@@ -116,7 +115,7 @@ class _Job:
     seed: int
     run_dir: Path | None = None
     demos_path: Path | None = None
-    config: NirlConfig | None = None
+    config: LearnerConfig | None = None
 
     def policy(self) -> Callable:
         if self.config is not None:
@@ -211,7 +210,7 @@ def write_report(
     """``report.md`` with the results table and the figures."""
     training_plots(out / "nirl", out)
     paths_plot(out / "paths.png", {k: paths[k] for k in ("NIRL", "rule on phi(s)", "always forward")})
-    record = read_run(out / "nirl")
+    record = RunDir(out / "nirl").read_record()
     text = f"""# nirl-mj run: {task.name}
 
 {n_demos} demonstrations by the {expert} expert; NIRL ({variant} variant), {record["iterations"]} iterations,

@@ -95,16 +95,14 @@ def run_seed(experiment: Experiment, run: int) -> int:
 
 def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> list[int]:
     """The test arenas of run ``run``, shared by every method: none was seen by any learner of it."""
-    from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds
-    from nirl_mj.experiments.training import validation_seeds
+    from nirl_mj.experiments.seeds import held_out_seeds
+    from nirl_mj.experiments.training import planned_seeds
 
     seed = run_seed(experiment, run)
     seen = set(demo_seeds)
     for method in experiment.methods:
         if method.trains:
-            config = method.nirl_config(experiment.config)
-            seen |= set(validation_seeds(config, seed))
-            seen |= set(domain_seeds("train", seed, config.episodes * config.trajectories_per_episode))
+            seen |= planned_seeds(method.learner_config(experiment.config), seed)
     return held_out_seeds(seed, experiment.tests, seen)
 
 
@@ -112,7 +110,7 @@ def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> li
 class RunJob:
     """Method ``method``'s run ``run``: what it trains on, where, and the arenas it is tested on.
 
-    ``config``: the resolved ``NirlConfig`` fields (trainable methods); ``run_dir`` an absolute
+    ``config``: the resolved learner config, flat (``LearnerConfig.to_dict``) (trainable methods); ``run_dir`` an absolute
     path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the run's test arenas."""
 
     method: MethodSpec
@@ -135,7 +133,7 @@ def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[
         seeds = tuple(run_test_seeds(experiment, run, demo_seeds))
         seed = run_seed(experiment, run)
         for method in experiment.methods:
-            config = method.nirl_config(experiment.config).to_dict() if method.trains else {}
+            config = method.learner_config(experiment.config).to_dict() if method.trains else {}
             run_dir = out / "runs" / method.name / str(seed)
             jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(demos_path), str(run_dir),
                                             config, seeds)  # fmt: skip
@@ -144,9 +142,10 @@ def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[
 
 def read_finished(run_dir: str | Path) -> dict:
     """The record of a finished training run; a clear error if it has not finished."""
-    from nirl_mj.experiments.training import read_run
+    from nirl_mj.data.rundir import RunDir
 
-    record = read_run(run_dir) if (Path(run_dir) / "run.json").is_file() else {}
+    run = RunDir(run_dir)
+    record = run.read_record() if run.is_run else {}
     if "train_seeds" not in record:
         raise ExperimentError(f"{run_dir}: its training has not finished; rerun the experiment to train it")
     return record
@@ -156,9 +155,9 @@ def ensure_trained(job: RunJob) -> dict:
     """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
     record (``nirl_mj.experiments.training.ensure_trained``)."""
     from nirl_mj.experiments.training import ensure_trained as ensure_run
-    from nirl_mj.learn.loop import NirlConfig
+    from nirl_mj.learn.config import LearnerConfig
 
-    return ensure_run(job.run_dir, job.task, job.demos_path, NirlConfig(**job.config), job.seed)
+    return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed)
 
 
 def policy_of(job: RunJob, train: bool = True) -> Callable:

@@ -1,13 +1,11 @@
-"""Training runs on disk: a run directory, a checkpoint every iteration, exact resume.
+"""Training runs: the shared IRL loop on the simulation, a checkpoint every iteration, exact resume.
 
-RUN_DIR holds ``run.json`` (task, variant, configuration, seed, demonstrations,
-the arena seeds used), ``metrics.jsonl`` (one line per iteration),
-``checkpoint.npz`` (the whole learner state, written atomically after every
-iteration), and at the end ``policy.npz`` (the selected and the last network)
-and ``reward.json`` (theta of the selected iteration, by component name). An
-interrupted run (Ctrl-C, a crash, a killed machine) continues from its last
-checkpoint with ``resume=True`` and ends with exactly the weights an
-uninterrupted run would have.
+The loop itself (``nirl_mj.learn.loop``) does not simulate; here it gets its
+rollouts from the episode loop in the training arenas (``seeds.domain_seeds("train")``),
+its validation from held-out validation arenas, and its files from a
+:class:`~nirl_mj.data.rundir.RunDir`. An interrupted run (Ctrl-C, a crash, a killed
+machine) continues from its last checkpoint with ``resume=True`` and ends with
+exactly the weights an uninterrupted run would have.
 """
 
 from __future__ import annotations
@@ -15,99 +13,76 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import zipfile
-from collections.abc import Callable
-from pathlib import Path
+from collections.abc import Callable, Sequence
+from typing import Any
 
+import dm_env
 import numpy as np
 
-from nirl_mj.data.atomic import write_npz, write_text
-from nirl_mj.data.trajectory import load_dataset
+from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.data.trajectory import Trajectory, load_dataset
+from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network
-from nirl_mj.learn.loop import Metrics, Nirl, NirlConfig, greedy_policy
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.loop import IrlLoop, Metrics, greedy_policy
 from nirl_mj.learn.reward import RewardModel
 from nirl_mj.sim import spec as specs
+from nirl_mj.sim.episode import Agent, run_episode
+from nirl_mj.sim.task import make_env
 
-RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
-POLICY_FILE, REWARD_FILE = "policy.npz", "reward.json"
-
-
-class RunError(ValueError):
-    """A run directory is missing, foreign, corrupted or would be overwritten."""
+Policy = Callable[[np.ndarray], int]
 
 
-def read_run(run_dir: str | os.PathLike) -> dict:
-    """The run's ``run.json``, with a clear error if RUN_DIR is not a run."""
-    path = Path(run_dir) / RUN_FILE
-    if not path.is_file():
-        raise RunError(
-            f"{run_dir} is not a nirl-mj run directory (no {RUN_FILE}); train one with `nirl-mj train`"
-        )
+def run_config(record: dict[str, Any]) -> LearnerConfig:
+    """The learner config of a run record."""
     try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise RunError(f"{path} is corrupted: {exc}") from None
+        return LearnerConfig.from_dict(record["config"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RunError(f"the run record's learner config is not readable ({exc})") from None
 
 
-def load_checkpoint(run_dir: str | os.PathLike) -> dict[str, np.ndarray]:
-    path = Path(run_dir) / CHECKPOINT_FILE
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
-    except FileNotFoundError:
-        raise RunError(f"{run_dir} has no checkpoint to resume from ({CHECKPOINT_FILE})") from None
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise RunError(f"{path} is corrupted ({exc}); start a new run in another directory") from None
-
-
-def load_policy(
-    run_dir: str | os.PathLike, which: str = "selected"
-) -> tuple[Callable[[np.ndarray], int], dict]:
+def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Policy, dict]:
     """The trained greedy policy on phi(s) and the run's record.
 
-    ``which``: "selected" or "last" (from policy.npz), or an iteration number
+    ``which``: "selected" or "last" (from the policy file), or an iteration number
     (any kept policy, from the checkpoint: to study what another selection rule
     would have picked).
     """
-    run = read_run(run_dir)
-    net = network.QNetwork(seed=0)
+    run = RunDir(run_dir)
+    record = run.read_record()
     if str(which).isdigit():
-        state, i = load_checkpoint(run_dir), int(which)
+        state, i = run.read_checkpoint(), int(which)
         kept = len(state["scores"])
         if i >= kept:
-            raise RunError(
-                f"{run_dir} kept {kept} policies (iterations 0-{kept - 1}); there is no iteration {i}"
-            )
-        network.set_weights(net, {k: state[f"kept_{k}"][i] for k in ("W1", "W2")})
-        return greedy_policy(net, run["config"]["input_scaling"]), run
-    if which not in ("selected", "last"):
-        raise RunError(f"unknown policy {which!r}; accepted: selected, last or an iteration number")
-    path = Path(run_dir) / POLICY_FILE
-    if not path.is_file():
-        raise RunError(
-            f"{run_dir} has no {POLICY_FILE}: its training has not finished (resume it with --resume)"
-        )
-    with np.load(path, allow_pickle=False) as data:
-        network.set_weights(
-            net, {k.split("/", 1)[1]: data[k] for k in data.files if k.startswith(which + "/")}
-        )
-    return greedy_policy(net, run["config"]["input_scaling"]), run
+            raise RunError(f"{run} kept {kept} policies (iterations 0-{kept - 1}); there is no iteration {i}")
+        weights = {k: state[f"kept_{k}"][i] for k in ("W1", "W2")}
+    else:
+        weights = run.read_policy(which)
+    return _greedy(weights, run_config(record)), record
+
+
+def _greedy(weights: dict[str, np.ndarray], config: LearnerConfig) -> Policy:
+    net = network.QNetwork(seed=0)
+    network.set_weights(net, weights)
+    return greedy_policy(net, config.loop.input_scaling)
+
+
+def _rollouts(env: dm_env.Environment) -> Callable[[Agent, Sequence[int]], list[Trajectory]]:
+    return lambda agent, seeds: [run_episode(env, agent, s) for s in seeds]
 
 
 def train(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
     demos_path: str | os.PathLike,
-    config: NirlConfig,
+    config: LearnerConfig,
     seed: int = 0,
     resume: bool = False,
     on_metrics: Callable[[Metrics], None] | None = None,
 ) -> dict:
-    """Trains (or resumes) NIRL in ``run_dir``; returns the run record."""
-    from nirl_mj.sim.task import make_env
-
-    run_dir = Path(run_dir)
+    """Trains (or resumes) the configured method in ``run_dir``; returns the run record."""
+    run = RunDir(run_dir)
     demos = load_dataset(demos_path)
     record = {
         "task": task.to_dict(),
@@ -118,55 +93,50 @@ def train(
         "validation_seeds": validation_seeds(config, seed),
     }
     if resume:
-        saved = read_run(run_dir)
+        saved = run.read_record()
         for key in ("task", "config", "seed"):
             if saved[key] != json.loads(json.dumps(record[key])):
                 raise RunError(
-                    f"{run_dir} was trained with another {key}; resume with the same options, "
-                    "or train in a new --out"
+                    f"{run} was trained with another {key}; resume with the same options, or train in a new --out"
                 )
-    elif run_dir.exists() and any(run_dir.iterdir()):
+    elif not run.is_empty():
         raise RunError(
-            f"{run_dir} exists and is not empty; pass --resume to continue it, or choose another --out"
+            f"{run} exists and is not empty; pass --resume to continue it, or choose another --out"
         )
-    run_dir.mkdir(parents=True, exist_ok=True)
 
-    learner = Nirl(config, demos, seed)
+    learner = IrlLoop(config, demos, seed)
     if resume:
-        learner.load_state(load_checkpoint(run_dir))
-        _truncate_metrics(run_dir / METRICS_FILE, learner.iteration)
+        learner.load_state(run.read_checkpoint())
+        run.keep_metrics(learner.iteration)  # a crash may have written one row past the checkpoint
     else:
-        write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
-        (run_dir / METRICS_FILE).write_text("")
-    env = make_env(specs.replace(task, robot={"drive": config.train_drive}))
-    first_round = record["validation_seeds"][: config.validation_arenas]
+        run.write_record(record)
+        run.start_metrics()
+    loop = config.loop
+    env = make_env(specs.replace(task, robot={"drive": loop.train_drive}))
+    first_round = record["validation_seeds"][: loop.validation_arenas]
 
-    def validate(net) -> float | None:
-        if config.selection != "validation" or learner.iteration % config.validate_every:
+    def validate(net: network.QNetwork) -> float | None:
+        if loop.selection != "validation" or learner.iteration % loop.validate_every:
             return None
-        from nirl_mj.experiments.evaluation import evaluate
+        return evaluate(env, greedy_policy(net, loop.input_scaling), first_round)[0]["success_rate"]
 
-        policy = greedy_policy(net, config.input_scaling)
-        return evaluate(env, policy, first_round)[0]["success_rate"]
-
-    k = config.trajectories_per_episode
-    while learner.iteration < config.episodes and not learner.stopped:
+    k = loop.trajectories_per_episode
+    while learner.iteration < loop.episodes and not learner.stopped:
         seeds = domain_seeds("train", seed, k, start=learner.iteration * k)
-        metrics = learner.step(env, seeds, validate)
-        with open(run_dir / METRICS_FILE, "a") as f:
-            f.write(json.dumps(metrics.__dict__) + "\n")
-        write_npz(run_dir / CHECKPOINT_FILE, learner.state())
+        metrics = learner.step(_rollouts(env), seeds, validate)
+        run.append_metrics(metrics.__dict__)
+        run.write_checkpoint(learner.state())
         if on_metrics:
             on_metrics(metrics)
-    selection = select(learner, env, record["validation_seeds"][config.validation_arenas :])
-    return finish(run_dir, learner, {**record, "selection": selection})
+    selection = select(learner, env, record["validation_seeds"][loop.validation_arenas :])
+    return finish(run, learner, {**record, "selection": selection})
 
 
 def ensure_trained(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
     demos_path: str | os.PathLike,
-    config: NirlConfig,
+    config: LearnerConfig,
     seed: int = 0,
 ) -> dict:
     """Trains the run, resumes it from its checkpoint, or returns a finished one's record.
@@ -174,27 +144,33 @@ def ensure_trained(
     Finished means the final record is written (:func:`finish` writes it last). A directory
     killed before its first checkpoint holds only the files :func:`train` starts with and is
     started afresh; one holding anything else is refused."""
-    run_dir = Path(run_dir)
-    if (run_dir / RUN_FILE).is_file() and (run_dir / POLICY_FILE).is_file():
-        record = read_run(run_dir)
-        if "train_seeds" in record:
-            return record
-    resume = (run_dir / CHECKPOINT_FILE).is_file()
-    if not resume and run_dir.exists():
-        extra = {p.name for p in run_dir.iterdir()} - {RUN_FILE, METRICS_FILE, REWARD_FILE}
+    run = RunDir(run_dir)
+    if run.is_finished:
+        return run.read_record()
+    resume = run.has_checkpoint
+    if not resume and run.path.exists():
+        extra = run.names() - {RUN_FILE, METRICS_FILE, REWARD_FILE}
         if extra:
-            raise RunError(f"{run_dir} holds {sorted(extra)} but no checkpoint; choose another directory")
-        shutil.rmtree(run_dir)  # holds only files a training writes, and no checkpoint to resume
-    return train(run_dir, task, demos_path, config, seed, resume=resume)
+            raise RunError(f"{run} holds {sorted(extra)} but no {CHECKPOINT_FILE}; choose another directory")
+        shutil.rmtree(run.path)  # holds only files a training writes, and no checkpoint to resume
+    return train(run.path, task, demos_path, config, seed, resume=resume)
 
 
-def validation_seeds(config: NirlConfig, seed: int) -> list[int]:
+def validation_seeds(config: LearnerConfig, seed: int) -> list[int]:
     """Every validation arena a run may use: the first round's, then the second round's."""
-    rounds = 2 if config.selection == "validation" and config.final_candidates > 1 else 1
-    return domain_seeds("validation", seed, rounds * config.validation_arenas)
+    loop = config.loop
+    rounds = 2 if loop.selection == "validation" and loop.final_candidates > 1 else 1
+    return domain_seeds("validation", seed, rounds * loop.validation_arenas)
 
 
-def select(learner: Nirl, env, second_round: list[int]) -> dict:
+def planned_seeds(config: LearnerConfig, seed: int) -> set[int]:
+    """Every training and validation arena a run of ``config`` and ``seed`` may visit."""
+    loop = config.loop
+    train = domain_seeds("train", seed, loop.episodes * loop.trajectories_per_episode)
+    return {*validation_seeds(config, seed), *train}
+
+
+def select(learner: IrlLoop, env: dm_env.Environment, second_round: list[int]) -> dict:
     """The kept policy to report, by the configured rule, with how it was chosen.
 
     "validation": the ``final_candidates`` best first-round policies are evaluated
@@ -202,48 +178,36 @@ def select(learner: Nirl, env, second_round: list[int]) -> dict:
     on ties): picking the maximum of many noisy 20-arena estimates favours lucky
     ones, a fresh estimate of the few best corrects that.
     """
-    from nirl_mj.experiments.evaluation import evaluate
-
-    c = learner.config
+    loop = learner.loop
     first = learner.selected
     if not second_round or not learner.kept:
-        return {"rule": c.selection, "iteration": first}
+        return {"rule": loop.selection, "iteration": first}
     order = sorted(range(len(learner.scores)), key=lambda i: (-learner.scores[i], i))
-    candidates = sorted(order[: c.final_candidates])
+    candidates = sorted(order[: loop.final_candidates])
     combined = {}
     for i in candidates:
-        net = network.QNetwork(seed=0)
-        network.set_weights(net, learner.kept[i])
-        second = evaluate(env, greedy_policy(net, c.input_scaling), second_round)[0]["success_rate"]
+        second = evaluate(env, _greedy(learner.kept[i], learner.config), second_round)[0]["success_rate"]
         combined[i] = (learner.scores[i] + second) / 2
     chosen = max(candidates, key=lambda i: (combined[i], -i))
     return {
-        "rule": f"{c.selection}, best {c.final_candidates} re-validated",
+        "rule": f"{loop.selection}, best {loop.final_candidates} re-validated",
         "iteration": chosen,
         "first_round_best": first,
         "candidates": {str(i): {"first": learner.scores[i], "both": combined[i]} for i in candidates},
     }
 
 
-def finish(run_dir: Path, learner: Nirl, record: dict) -> dict:
-    """Writes the selected and last policy and the selected reward."""
+def finish(run: RunDir, learner: IrlLoop, record: dict) -> dict:
+    """Writes the selected and last policy, the selected reward, and the final record (last)."""
     chosen = record["selection"]["iteration"]
-    arrays = {f"selected/{k}": v for k, v in learner.kept[chosen].items()}
-    arrays |= {f"last/{k}": v for k, v in learner.kept[-1].items()}
-    write_npz(run_dir / POLICY_FILE, arrays)
-    RewardModel(learner.thetas[chosen], learner.config.reward_features).save(run_dir / REWARD_FILE)
-    n_train = learner.iteration * learner.config.trajectories_per_episode
+    run.write_policy(learner.kept[chosen], learner.kept[-1])
+    run.write_reward(RewardModel(learner.thetas[chosen], learner.loop.reward_features).to_dict())
+    n_train = learner.iteration * learner.loop.trajectories_per_episode
     record = {
         **record,
         "iterations": learner.iteration,
         "selected_iteration": chosen,
         "train_seeds": domain_seeds("train", record["seed"], n_train),
     }
-    write_text(run_dir / RUN_FILE, json.dumps(record, indent=1))
+    run.write_record(record)
     return record
-
-
-def _truncate_metrics(path: Path, iterations: int) -> None:
-    """Keeps the first ``iterations`` lines: a crash may have written one past the checkpoint."""
-    lines = path.read_text().splitlines(keepends=True) if path.exists() else []
-    write_text(path, "".join(lines[:iterations]))

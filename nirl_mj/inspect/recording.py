@@ -455,24 +455,21 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     rows not logged yet (iterations before a resume), the demonstrations of the dataset ``demos``
     with r_theta of the run's selected reward (``reward.json``), and the reward map in the first
     demonstration's arena. Returns the recording's path."""
-    import json
-
+    from nirl_mj.data.rundir import REWARD_FILE, RUN_FILE, RunDir
     from nirl_mj.data.trajectory import load_dataset
-    from nirl_mj.experiments.training import METRICS_FILE, REWARD_FILE, read_run
     from nirl_mj.learn.reward import RewardModel
 
-    run_dir = Path(run_dir)
+    run = RunDir(run_dir)
     try:
-        run = read_run(run_dir)
-        lines = (run_dir / METRICS_FILE).read_text().splitlines()
-        rows = [json.loads(line) for line in lines if line.strip()]
+        record = run.read_record()
+        rows = run.read_metrics()
         recording.training([r for r in rows if int(r["episode"]) not in recording.logged_iterations])
-        reward = RewardModel.load(run_dir / REWARD_FILE)
+        reward = RewardModel.from_dict(run.read_reward(), str(run.file(REWARD_FILE)))
         trajectories = load_dataset(demos)
         for i, trajectory in enumerate(trajectories):
             recording.episode(f"demos/{i:03d}", trajectory, reward)
         recording.reward_map(
-            from_dict(run["task"], f"{run_dir}/run.json"), trajectories[0].arena_seed, reward
+            from_dict(record["task"], str(run.file(RUN_FILE))), trajectories[0].arena_seed, reward
         )
     except BaseException:
         recording.abort()
@@ -494,14 +491,6 @@ def copy_recording(source: str | os.PathLike, target: str | os.PathLike) -> Path
     return target
 
 
-def _as_reward(reward: RewardModel | str | os.PathLike | None) -> RewardModel | None:
-    if reward is None or not isinstance(reward, str | os.PathLike):
-        return reward
-    from nirl_mj.learn.reward import RewardModel
-
-    return RewardModel.load(reward)
-
-
 def record_demonstrations(
     path: str | os.PathLike, trajectories: Sequence[Trajectory], reward: RewardModel | None = None
 ) -> Path:
@@ -513,7 +502,7 @@ def record_evaluation(
     path: str | os.PathLike,
     name: str,
     trajectories: Sequence[Trajectory],
-    reward: RewardModel | str | os.PathLike | None = None,
+    reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
 ) -> Path:
     """Writes a ``.rrd`` with every evaluation episode (``eval/<slug(name)>/<i>``), r_theta along
@@ -527,14 +516,14 @@ def record_run(
     metrics: Sequence[dict],
     evaluations: dict[str, Sequence[Trajectory]],
     max_paths: int = 10,
-    reward: RewardModel | str | os.PathLike | None = None,
+    reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
     scalars, up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``),
-    r_theta along every path when ``reward`` (a RewardModel or its JSON file) is given, and with
+    r_theta along every path when ``reward`` is given, and with
     it the reward map in ``map_arena`` (task, arena seed) if given."""
-    model = _as_reward(reward)
+    model = reward
     with Recording(path) as recording:
         for i, trajectory in enumerate(demos):
             recording.episode(f"demos/{i:03d}", trajectory, model)

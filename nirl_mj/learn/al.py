@@ -11,17 +11,17 @@ The paper's algorithm; its step numbers are used in the comments below:
 4. Compute the optimal policy pi^(i) for the reward R = (w^(i))^T f (an RL step).
 5. Estimate mu^(i) = mu(pi^(i)) by rollouts; i <- i + 1; go to step 2.
 
-Model-free reading in the shared loop (:class:`nirl_mj.learn.loop.Nirl`): the loop's iteration i
+Model-free reading in the shared loop (:class:`nirl_mj.learn.loop.IrlLoop`): the loop's iteration i
 rolls out the learner's current Boltzmann policy (eq. 8). At i = 0 that is the random initial
 network at the schedule's low eta (nearly uniform): step 1's random policy. Afterwards it is
 pi^(i), so each update does step 5 for the policy the previous update's reward produced, then
 steps 2-3. Step 4 is the loop's ONE iteration of SARSA targets and backpropagation (eq. 14-15)
 on r = theta^T f with the network warm-started, not an RL solve to optimality: the policy whose
 mu is measured next has only partly adapted to w^(i). The loop's stopping rule (step 3) is
-``NirlConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
+``LearnerConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
 on validation arenas, as for every method, not the paper's "best t or a mixture".
 
-Feature expectations (``NirlConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
+Feature expectations (``LearnerConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
 each trajectory's discounted feature sum from its first pair, averaged over trajectories. With
 gamma = 0.65 that weighs about the first three decisions of each trajectory, in open space near
 the start (docs/ALGORITHM.md, "Baselines"). ``"suffix"`` averages the discounted suffix sum of every
@@ -34,6 +34,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from nirl_mj.learn.config import ApprenticeshipConfig, LoopConfig
 from nirl_mj.learn.mmp import discounted_suffix_sums, feature_expectations
 from nirl_mj.learn.reward import trajectory_pair_features
 
@@ -82,16 +83,16 @@ def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
 class ProjectionStep:
     """AL's reward step: theta = w / ||w||, w = mu_E - mu_bar after the projection (steps 1-3).
 
-    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
     ``al_expectations``). theta is w scaled to unit norm: the loop maps rewards affinely into
     [0, 1 - gamma], so the scale of w does not change the learner; the unit norm keeps theta
     comparable with NIRL's ||theta|| <= 1. The convergence measure is t = ||w||_2.
     """
 
-    def __init__(self, config, demos: Sequence) -> None:
-        self.gamma = float(config.gamma)
-        self.kind = config.al_expectations
-        self.features = config.reward_features
+    def __init__(self, loop: LoopConfig, own: ApprenticeshipConfig, demos: Sequence) -> None:
+        self.gamma = float(loop.gamma)
+        self.kind = own.al_expectations
+        self.features = loop.reward_features
         # mu_E from the demonstrations (eq. 11, or the suffix mean)
         self.mu_e = expectations(trajectory_pair_features(demos, self.features), self.gamma, self.kind)
         self.mu_bar: np.ndarray | None = None  # None until step 1 has seen the first rollouts

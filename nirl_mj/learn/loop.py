@@ -1,4 +1,4 @@
-"""NIRL, Algorithm 1 of the paper, in the order it runs; both variants are configurations.
+"""The shared IRL loop: NIRL's Algorithm 1 in the order it runs; methods and variants are configurations.
 
 Each iteration ("episode" in the paper):
 
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import dm_env
@@ -34,117 +34,10 @@ import torch
 
 from nirl_mj.data.trajectory import Trajectory, stack_pairs
 from nirl_mj.learn import network, sarsa
-from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext, reward_step
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
 from nirl_mj.learn.reward import RewardModel, all_action_features
-from nirl_mj.sim.episode import run_episode
-
-VARIANTS = ("paper", "default")
-REWARD_SOURCES = ("learned", "progress", "constant")
-
-
-@dataclass(frozen=True)
-class NirlConfig:
-    """Every choice of the learner. ``paper()`` and ``default()`` give the two variants."""
-
-    variant: str = "default"
-    method: str = "nirl"  # the reward step: "nirl" (max margin, eq. 11-13) or a baseline (learn/methods.py)
-    episodes: int = 60  # ~2-4 min per run on one core (planar training drive)
-    trajectories_per_episode: int = 10
-    gamma: float = 0.65  # eq. 14
-    alpha: float = 0.8  # eq. 14
-    eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
-    eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
-    reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
-    matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums
-    # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
-    # discounted sum (its own behaviour); 0: the expert's own continuation,
-    # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E) (akin to SCIRL's heuristic, which uses
-    # mu_E(s, a_E): docs/ALGORITHM.md); in between: a mixture.
-    future_mix: float = 0.0
-    margin_loss: float = 0.1  # l(s, a) for a != a_E (paper: 1)
-    mmp_lambda: float = 0.0  # lambda_1 of eq. 13
-    mmp_steps: int = 30
-    mmp_step_size: float = 0.5  # sigma_1
-    mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
-    epsilon: float = float("-inf")  # stop when the margin t <= epsilon (paper: 0)
-    reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
-    terminal_arrival_value: float = 1.0  # value of reaching the target (a terminal state)
-    net_step: float = 0.4  # sigma_2 of eq. 15
-    net_l2: float = 1e-3  # lambda_2 of eq. 15
-    replay_episodes: int = 10  # 0: train on this episode's pairs only (paper)
-    net_epochs: int = 4  # full-batch steps (no replay) or minibatch epochs (replay)
-    batch_size: int = 64
-    input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
-    selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
-    validation_arenas: int = 20
-    validate_every: int = 5
-    # validation selection: the best `final_candidates` policies are re-validated on as many
-    # new validation arenas, and the best over both sets is chosen (1: no second round)
-    final_candidates: int = 3
-    reward_source: str = "learned"
-    train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
-    # -- the baselines' reward steps (method "al", "re", "scirl"; docs/ALGORITHM.md, "Baselines") --
-    # AL, RE: what a feature expectation is. "trajectory": eq. 11, each trajectory's discounted sum
-    # from its start (the papers' reading; with gamma 0.65 it sees ~3 steps); "suffix": the mean
-    # discounted suffix sum over every visited pair (sees every state)
-    al_expectations: str = "trajectory"
-    re_expectations: str = "trajectory"
-    re_horizon: int = 16  # pairs per RE sample (and its importance ratio); gamma^16 ~ 1e-3
-    re_step: float = 0.5  # RE: gradient-ascent step on the dual g(theta)
-    re_steps: int = 30  # RE: ascent steps per iteration, warm-started from the last theta
-    re_pool: int = 10  # RE: iterations whose rollouts are pooled as importance samples
-    re_confidence: float = 0.95  # RE: Hoeffding confidence of the L1 widths epsilon_i (0: no L1 term)
-    # RE: how the L1 term -sum eps_i |theta_i| is stepped. "subgradient" (the paper): theta_i flips by
-    # +-re_step eps_i around 0 every step; "proximal" (soft-thresholding): such theta_i rest at 0
-    re_l1_step: str = "proximal"
-    scirl_steps: int = 40  # SCIRL: normalised subgradient steps (as the authors' code)
-    scirl_step_size: float = 3.0  # SCIRL: step size / (k + 1) at step k (authors: 3 / (k + 1))
-
-    def __post_init__(self) -> None:
-        if self.method not in REWARD_STEPS:
-            raise ValueError(f"unknown method {self.method!r}; accepted: {', '.join(REWARD_STEPS)}")
-        if self.reward_source not in REWARD_SOURCES:
-            raise ValueError(
-                f"unknown reward_source {self.reward_source!r}; accepted: {', '.join(REWARD_SOURCES)}"
-            )
-
-    @classmethod
-    def paper(cls, **changes) -> NirlConfig:
-        """The algorithm as the paper writes it."""
-        base = dict(
-            variant="paper",
-            eta=10.0,
-            eta_final=10.0,
-            reward_features="paper",
-            matching="paper",
-            future_mix=1.0,
-            episodes=120,
-            margin_loss=1.0,
-            mmp_step_decay=0.0,
-            reward_scaling=False,
-            terminal_arrival_value=0.0,
-            replay_episodes=0,
-            net_epochs=20,
-            input_scaling=False,
-            selection="demo_accuracy",
-            epsilon=0.0,
-        )
-        return cls(**{**base, **changes})
-
-    @classmethod
-    def default(cls, **changes) -> NirlConfig:
-        return cls(**changes)
-
-    @classmethod
-    def named(cls, variant: str, **changes) -> NirlConfig:
-        if variant not in VARIANTS:
-            raise ValueError(f"unknown variant {variant!r}; accepted: {', '.join(VARIANTS)}")
-        return cls.paper(**changes) if variant == "paper" else cls.default(**changes)
-
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
 
 _INPUT_SCALE = np.array([7.0] * 7 + [9.0] + [1.0] * 8)
 
@@ -272,21 +165,28 @@ class Metrics:
     validation_success: float | None
 
 
-class Nirl:
-    """Algorithm 1's state between iterations, and one iteration (:meth:`step`)."""
+Rollouts = Callable[["NetworkAgent", Sequence[int]], list[Trajectory]]
+"""``rollouts(agent, seeds)``: the agent driven once in the arena of each seed (the simulation's
+episode loop, passed in by the caller: this package does not simulate)."""
 
-    def __init__(self, config: NirlConfig, demos: list[Trajectory], seed: int) -> None:
+
+class IrlLoop:
+    """The loop every IRL method shares (Algorithm 1): its state between iterations, and one
+    iteration (:meth:`step`). The reward step is ``config.loop.method``'s."""
+
+    def __init__(self, config: LearnerConfig, demos: list[Trajectory], seed: int) -> None:
         if not demos:
-            raise ValueError("NIRL needs at least one demonstration")
+            raise ValueError("the IRL loop needs at least one demonstration")
         self.config = config
+        self.loop = config.loop
         self.seed = seed
         self.rng = np.random.default_rng([seed, 7])
         torch.set_num_threads(1)  # tiny network: threads only add nondeterminism
         self.net = network.QNetwork(seed=seed)
         self.demo_phi, self.demo_actions = stack_pairs(demos)
-        self.demo_inputs = network_inputs(self.demo_phi, config.input_scaling)
-        self.reward_step = reward_step(config, demos) if config.reward_source == "learned" else None
-        n_theta = all_action_features(self.demo_phi[:1], config.reward_features).shape[-1]
+        self.demo_inputs = network_inputs(self.demo_phi, config.loop.input_scaling)
+        self.reward_step = reward_step(config, demos) if config.loop.reward_source == "learned" else None
+        n_theta = all_action_features(self.demo_phi[:1], config.loop.reward_features).shape[-1]
         self.theta = np.zeros(n_theta)
         self.replay: list[Transitions] = []
         self.iteration = 0
@@ -299,7 +199,7 @@ class Nirl:
 
     def _rewards(self, t: Transitions) -> tuple[np.ndarray, float]:
         """Rewards of the transitions and their spread before any scaling."""
-        c = self.config
+        c = self.loop
         if c.reward_source == "progress":
             raw = t.progress
             lo, hi = -1.0, 1.0
@@ -315,7 +215,7 @@ class Nirl:
         return (1.0 - c.gamma) * (raw - lo) / max(spread, 1e-12), spread
 
     def _targets(self, t: Transitions) -> tuple[np.ndarray, float, float]:
-        c = self.config
+        c = self.loop
         q = network.q_values(self.net, network_inputs(t.phi, c.input_scaling))
         q_next_all = network.q_values(self.net, network_inputs(t.next_phi, c.input_scaling))
         q_sa = q[np.arange(len(t)), t.action]
@@ -330,7 +230,7 @@ class Nirl:
         return targets, clipped, spread
 
     def _fit(self, t: Transitions) -> float:
-        c = self.config
+        c = self.loop
         targets, self._clipped, self._spread = self._targets(t)
         x = network_inputs(t.phi, c.input_scaling)
         if c.replay_episodes == 0:  # the paper: full-batch steps on this episode's pairs
@@ -344,18 +244,16 @@ class Nirl:
     # -- one iteration of Algorithm 1 -------------------------------------------------
 
     def eta(self) -> float:
-        c = self.config
+        c = self.loop
         frac = self.iteration / max(c.episodes - 1, 1)
         return c.eta + (c.eta_final - c.eta) * frac
 
-    def step(
-        self, env: dm_env.Environment, train_seeds: list[int], validate: Callable | None = None
-    ) -> Metrics:
+    def step(self, rollouts: Rollouts, train_seeds: list[int], validate: Callable | None = None) -> Metrics:
         """One iteration: rollouts in the arenas of ``train_seeds``, theta, the next network."""
-        c = self.config
+        c = self.loop
         eta = self.eta()
         agent = NetworkAgent(self.net, c.input_scaling, eta, self.rng)
-        trajectories = [run_episode(env, agent, s) for s in train_seeds]  # line 4
+        trajectories = rollouts(agent, train_seeds)  # line 4
         before = network.get_weights(self.net)
         visited = np.concatenate([network_inputs(t.features[:-1], c.input_scaling) for t in trajectories])
         entropy = network.policy_entropy(network.q_values(self.net, visited), eta)

@@ -1,9 +1,10 @@
 """The IRL methods that share NIRL's loop, and the rows of a comparison.
 
-Every trainable method runs the same loop (:class:`nirl_mj.learn.loop.Nirl`:
+Every trainable method runs the same loop (:class:`nirl_mj.learn.loop.IrlLoop`:
 rollouts of the neural policy, a reward step, SARSA targets and
 backpropagation, selection of the kept policy); what differs is the reward
-step, chosen by ``NirlConfig.method``:
+step, chosen by ``LoopConfig.method`` and configured by its own config
+(``nirl_mj.learn.config.STEP_CONFIGS``):
 
 - ``"nirl"``: maximum margin planning (paper eq. 11-13), :class:`nirl_mj.learn.mmp.MaxMarginStep`;
 - ``"al"``, ``"re"``, ``"scirl"``: the baselines of the paper's Table I
@@ -21,13 +22,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from nirl_mj.learn.config import METHODS, LearnerConfig, LoopConfig
+
 if TYPE_CHECKING:
     from nirl_mj.data.trajectory import Trajectory
-    from nirl_mj.learn.loop import NirlConfig
 
 
 @dataclass(frozen=True)
@@ -68,42 +70,40 @@ class RewardStep(Protocol):
     def load_state(self, state: dict[str, np.ndarray]) -> None: ...
 
 
-def _max_margin(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+def _max_margin(loop: LoopConfig, own: Any, demos: Sequence[Trajectory]) -> RewardStep:
     from nirl_mj.learn.mmp import MaxMarginStep
 
-    return MaxMarginStep(config, demos)
+    return MaxMarginStep(loop, own, demos)
 
 
-def _apprenticeship(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+def _apprenticeship(loop: LoopConfig, own: Any, demos: Sequence[Trajectory]) -> RewardStep:
     from nirl_mj.learn.al import ProjectionStep
 
-    return ProjectionStep(config, demos)
+    return ProjectionStep(loop, own, demos)
 
 
-def _relative_entropy(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+def _relative_entropy(loop: LoopConfig, own: Any, demos: Sequence[Trajectory]) -> RewardStep:
     from nirl_mj.learn.reirl import RelativeEntropyStep
 
-    return RelativeEntropyStep(config, demos)
+    return RelativeEntropyStep(loop, own, demos)
 
 
-def _scirl(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
+def _scirl(loop: LoopConfig, own: Any, demos: Sequence[Trajectory]) -> RewardStep:
     from nirl_mj.learn.scirl import ScirlStep
 
-    return ScirlStep(config, demos)
+    return ScirlStep(loop, own, demos)
 
 
-REWARD_STEPS: dict[str, Callable[[NirlConfig, Sequence[Trajectory]], RewardStep]] = {
+REWARD_STEPS: dict[str, Callable[[LoopConfig, Any, Sequence[Trajectory]], RewardStep]] = {
     "nirl": _max_margin,
     "al": _apprenticeship,  # Abbeel & Ng 2004, projection variant (learn/al.py)
     "re": _relative_entropy,  # Boularias, Kober & Peters 2011 (learn/reirl.py)
     "scirl": _scirl,  # Klein, Geist, Piot & Pietquin 2012 (learn/scirl.py)
 }
+assert tuple(REWARD_STEPS) == METHODS, "every method of nirl_mj.learn.config has a reward step"
 
 
-def reward_step(config: NirlConfig, demos: Sequence[Trajectory]) -> RewardStep:
-    """The reward step of ``config.method``."""
-    try:
-        make = REWARD_STEPS[config.method]
-    except KeyError:
-        raise ValueError(f"unknown method {config.method!r}; accepted: {', '.join(REWARD_STEPS)}") from None
-    return make(config, demos)
+def reward_step(config: LearnerConfig, demos: Sequence[Trajectory]) -> RewardStep:
+    """The reward step of ``config.loop.method``, with its own config."""
+    method = config.loop.method
+    return REWARD_STEPS[method](config.loop, config.steps[method], demos)

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.learn.config import LoopConfig, MaxMarginConfig
 from nirl_mj.learn.reward import trajectory_pair_features
 
 __all__ = [
@@ -208,63 +209,62 @@ def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
 class MaxMarginStep:
     """NIRL's reward step (Algorithm 1, line 5): theta by projected subgradient on eq. 13.
 
-    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig`; ``matching`` chooses
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``); ``matching`` chooses
     what the margin compares ("paper": eq. 11 expectations of whole trajectories;
     "occupancy": per-pair discounted sums with ``future_mix`` choosing what follows
     a deviation), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.
     """
 
-    def __init__(self, config, demos: Sequence) -> None:
+    def __init__(self, loop: LoopConfig, own: MaxMarginConfig, demos: Sequence) -> None:
         from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import pair_features, state_reward_features
 
-        self.config = config
+        self.loop, self.own = loop, own
         self.demo_phi, self.demo_actions = stack_pairs(demos)
-        c = config
-        fs = trajectory_pair_features(demos, c.reward_features)
-        if c.matching == "paper":
-            mu_e = feature_expectations(fs, c.gamma)  # eq. 11
+        fs = trajectory_pair_features(demos, self.loop.reward_features)
+        if self.own.matching == "paper":
+            mu_e = feature_expectations(fs, self.loop.gamma)  # eq. 11
             self.expert = np.broadcast_to(mu_e, (len(self.demo_actions), mu_e.size)).copy()
         else:
-            self.expert = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs])
+            self.expert = np.concatenate([discounted_suffix_sums(f, self.loop.gamma) for f in fs])
         # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
-        own = pair_features(self.demo_phi, self.demo_actions, c.reward_features)
-        self.expert_next = (self.expert - own) / c.gamma
-        self.blocks = state_reward_features(self.demo_phi, c.reward_features)  # (N, B)
+        demonstrated = pair_features(self.demo_phi, self.demo_actions, self.loop.reward_features)
+        self.expert_next = (self.expert - demonstrated) / self.loop.gamma
+        self.blocks = state_reward_features(self.demo_phi, self.loop.reward_features)  # (N, B)
 
     def learner_future(self, trajectories: Sequence) -> np.ndarray:
         """What follows each demonstrated pair on the learner's side, mu(next), (N, D):
         the learner's own mean discounted sum (``future_mix`` = 1), the expert's
         continuation (0, akin to SCIRL's heuristic, see docs/ALGORITHM.md), or a mixture."""
-        c = self.config
-        future = (1.0 - c.future_mix) * self.expert_next
-        if c.future_mix:
-            fs = trajectory_pair_features(trajectories, c.reward_features, skip_empty=True)
-            mean_sum = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs]).mean(axis=0)
-            future = future + c.future_mix * mean_sum
+        future = (1.0 - self.own.future_mix) * self.expert_next
+        if self.own.future_mix:
+            fs = trajectory_pair_features(trajectories, self.loop.reward_features, skip_empty=True)
+            mean_sum = np.concatenate([discounted_suffix_sums(f, self.loop.gamma) for f in fs]).mean(axis=0)
+            future = future + self.own.future_mix * mean_sum
         return future
 
     def learner_matching(self, trajectories: Sequence) -> np.ndarray:
         """The learner's side of eq. 13 for every demonstrated state and action, (N, 6, D)."""
         from nirl_mj.learn.reward import all_action_features
 
-        c = self.config
-        if c.matching == "paper":
-            fs = trajectory_pair_features(trajectories, c.reward_features, skip_empty=True)
-            mu = feature_expectations(fs, c.gamma)  # eq. 11 for the learner
+        if self.own.matching == "paper":
+            fs = trajectory_pair_features(trajectories, self.loop.reward_features, skip_empty=True)
+            mu = feature_expectations(fs, self.loop.gamma)  # eq. 11 for the learner
             return np.broadcast_to(mu, (len(self.demo_actions), 6, mu.size)).copy()
         # Occupancy: f(s, a) now, then what follows (learner_future).
         future = self.learner_future(trajectories)
-        return all_action_features(self.demo_phi, c.reward_features) + c.gamma * future[..., None, :]
+        return (
+            all_action_features(self.demo_phi, self.loop.reward_features)
+            + self.loop.gamma * future[..., None, :]
+        )
 
     def margin_loss(self, greedy_on_demos: np.ndarray) -> np.ndarray:
         """l(s, a) for every demonstrated state and action, (N, 6)."""
-        c = self.config
-        if c.matching == "paper":
+        if self.own.matching == "paper":
             # Paper: 0 if the learned policy reproduces the expert's pair, else l.
-            per_pair = np.where(greedy_on_demos == self.demo_actions, 0.0, c.margin_loss)
+            per_pair = np.where(greedy_on_demos == self.demo_actions, 0.0, self.loop.margin_loss)
             return np.repeat(per_pair[:, None], 6, axis=1)
-        return structured_loss(self.demo_actions, c.margin_loss)
+        return structured_loss(self.demo_actions, self.loop.margin_loss)
 
     def update(
         self,
@@ -277,16 +277,17 @@ class MaxMarginStep:
         """The next theta and the margin t (-min J: how far the best reward still puts the
         expert above every loss-augmented alternative; it falls to 0 as the learner matches).
         ``context`` (the rollouts' policy) is not needed here."""
-        c = self.config
-        lr = c.mmp_step_size / (1.0 + c.mmp_step_decay * iteration)
+        lr = self.own.mmp_step_size / (1.0 + self.own.mmp_step_decay * iteration)
         loss = self.margin_loss(greedy_on_demos)
-        if c.matching == "paper":
+        if self.own.matching == "paper":
             learner = self.learner_matching(trajectories)
-            theta, j_min = minimise_mmp(theta, self.expert, learner, loss, c.mmp_lambda, c.mmp_steps, lr)
+            theta, j_min = minimise_mmp(
+                theta, self.expert, learner, loss, self.own.mmp_lambda, self.own.mmp_steps, lr
+            )
         else:  # the same objective, without building the (N, 6, D) array
-            offset = c.gamma * self.learner_future(trajectories) - self.expert
+            offset = self.loop.gamma * self.learner_future(trajectories) - self.expert
             theta, j_min = minimise_mmp_blocks(
-                theta, self.blocks, offset, loss, c.mmp_lambda, c.mmp_steps, lr
+                theta, self.blocks, offset, loss, self.own.mmp_lambda, self.own.mmp_steps, lr
             )
         return theta, -j_min
 

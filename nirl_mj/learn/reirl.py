@@ -20,7 +20,7 @@ The model-free algorithm, in the order of the paper (steps numbered in the comme
    theta <- theta + re_step * gradient (the paper; the proximal form below is the default).
 5. Output r_theta = theta^T f; then RL on it.
 
-Readings in the shared loop (:class:`nirl_mj.learn.loop.Nirl`), each with its reason:
+Readings in the shared loop (:class:`nirl_mj.learn.loop.IrlLoop`), each with its reason:
 
 - The samples (step 3) are the learner's own rollouts, not a uniform policy's: the uniform policy
   crashes within a few decisions in these arenas (the 2-D prototype: 95 % of near-uniform training
@@ -57,6 +57,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from nirl_mj.data.features import N_ACTIONS
+from nirl_mj.learn.config import LoopConfig, RelativeEntropyConfig
 
 __all__ = [
     "EXPECTATIONS",
@@ -191,30 +192,34 @@ def samples(
 class RelativeEntropyStep:
     """RE-IRL's reward step: ``re_steps`` ascent steps on g(theta) over the pooled samples.
 
-    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
     ``re_*``). ``update`` needs the ``context`` (the rollouts' policy) for pi(tau).
     """
 
-    def __init__(self, config, demos: Sequence) -> None:
+    def __init__(self, loop: LoopConfig, own: RelativeEntropyConfig, demos: Sequence) -> None:
         from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
 
-        c = self.config = config
-        if c.re_horizon < 1 or c.re_pool < 1:
+        self.loop, self.own = loop, own
+        if self.own.re_horizon < 1 or self.own.re_pool < 1:
             raise ValueError("re_horizon and re_pool must be >= 1")
-        if c.re_l1_step not in L1_STEPS:
-            raise ValueError(f"unknown re_l1_step {c.re_l1_step!r}; accepted: {', '.join(L1_STEPS)}")
+        if self.own.re_l1_step not in L1_STEPS:
+            raise ValueError(f"unknown re_l1_step {self.own.re_l1_step!r}; accepted: {', '.join(L1_STEPS)}")
         phi, _ = stack_pairs(demos)
-        per_action = all_action_features(phi, c.reward_features)  # (N, 6, D)
+        per_action = all_action_features(phi, self.loop.reward_features)  # (N, 6, D)
         self.dim = per_action.shape[-1]
         # step 1: f_hat = mu_E, the expert's samples truncated and normalised as the learner's
-        fs = trajectory_pair_features(demos, c.reward_features)
+        fs = trajectory_pair_features(demos, self.loop.reward_features)
         uniform = [np.full(len(f), 1.0 / N_ACTIONS) for f in fs]  # (the expert's ratios are not used)
-        expert, _ = samples(fs, uniform, c.gamma, c.re_horizon, c.re_expectations, self.dim)
+        expert, _ = samples(
+            fs, uniform, self.loop.gamma, self.own.re_horizon, self.own.re_expectations, self.dim
+        )
         self.mu_e = expert.mean(axis=0)
         # step 2: range_i of one pair's f_i over the demonstrated states and every action (f >= 0)
         feature_range = per_action.max(axis=(0, 1))
-        self.eps = hoeffding_widths(feature_range, len(demos), c.gamma, c.re_horizon, c.re_confidence)
+        self.eps = hoeffding_widths(
+            feature_range, len(demos), self.loop.gamma, self.own.re_horizon, self.own.re_confidence
+        )
         self.pool: list[tuple[np.ndarray, np.ndarray]] = []  # per iteration: (f^tau (M_k, D), ln U/pi (M_k,))
 
     def update(
@@ -228,7 +233,6 @@ class RelativeEntropyStep:
         """Step 3 on this iteration's rollouts, then step 4 -> (theta, ||gradient||)."""
         from nirl_mj.learn.reward import pair_features
 
-        c = self.config
         if context is None:
             raise ValueError(
                 "RE-IRL's importance weights need the rollouts' policy (the loop's RolloutContext)"
@@ -236,23 +240,23 @@ class RelativeEntropyStep:
         # step 3: the learner's rollouts as samples, with pi(a_t | s_t) of the policy that drove them
         fs, p_taken = [], []
         for t in trajectories:
-            fs.append(pair_features(t.features[:-1], t.actions, c.reward_features))
+            fs.append(pair_features(t.features[:-1], t.actions, self.loop.reward_features))
             probs = context.action_probabilities(t.features[:-1]) if len(t) else np.zeros((0, N_ACTIONS))
             p_taken.append(probs[np.arange(len(t)), np.asarray(t.actions, dtype=int)])
-        fresh = samples(fs, p_taken, c.gamma, c.re_horizon, c.re_expectations, self.dim)
-        self.pool = [*self.pool, fresh][-c.re_pool :]
+        fresh = samples(fs, p_taken, self.loop.gamma, self.own.re_horizon, self.own.re_expectations, self.dim)
+        self.pool = [*self.pool, fresh][-self.own.re_pool :]
         f = np.concatenate([s[0] for s in self.pool])
         log_ratio = np.concatenate([s[1] for s in self.pool])
         theta = np.array(theta, dtype=np.float64)
         if len(f) == 0:
             return theta, float("nan")
         # step 4: ascent on the dual, warm-started from the last theta
-        proximal = c.re_l1_step == "proximal"
-        for _ in range(c.re_steps):
-            theta = ascent_step(theta, self.mu_e, f, log_ratio, self.eps, c.re_step, proximal)
+        proximal = self.own.re_l1_step == "proximal"
+        for _ in range(self.own.re_steps):
+            theta = ascent_step(theta, self.mu_e, f, log_ratio, self.eps, self.own.re_step, proximal)
         # convergence: the (proximal) gradient at theta, 0 at the maximum of g
-        after = ascent_step(theta, self.mu_e, f, log_ratio, self.eps, c.re_step, proximal)
-        return theta, float(np.linalg.norm(after - theta) / c.re_step)
+        after = ascent_step(theta, self.mu_e, f, log_ratio, self.eps, self.own.re_step, proximal)
+        return theta, float(np.linalg.norm(after - theta) / self.own.re_step)
 
     def state(self) -> dict[str, np.ndarray]:
         f = np.concatenate([s[0] for s in self.pool]) if self.pool else np.zeros((0, self.dim))

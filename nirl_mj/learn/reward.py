@@ -12,15 +12,11 @@ Two feature maps for the reward (the policy network always sees phi(s)):
 
 from __future__ import annotations
 
-import json
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from nirl_mj.data.atomic import write_text
 from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
 
 REWARD_FEATURES = ("paper", "extended")
@@ -105,16 +101,18 @@ class RewardModel:
         """theta by component name."""
         return dict(zip(reward_feature_names(self.kind), map(float, self.theta), strict=True))
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Writes ``{"kind", "theta": {name: value}}`` as JSON, atomically."""
-        text = json.dumps({"kind": self.kind, "theta": self.named()}, indent=1)
-        write_text(path, text)
+    def to_dict(self) -> dict:
+        """``{"kind", "theta": {name: value}}``: the reward file's content."""
+        return {"kind": self.kind, "theta": self.named()}
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> RewardModel:
-        data = json.loads(Path(path).read_text())
-        kind = data["kind"]
-        names = reward_feature_names(kind)
-        if set(data["theta"]) != set(names):
-            raise ValueError(f"{path}: theta components do not match the {kind!r} reward features")
-        return cls(np.array([data["theta"][n] for n in names]), kind)
+    def from_dict(cls, data: dict, where: str = "reward") -> RewardModel:
+        """The inverse of :meth:`to_dict`; ``where`` names the source in errors."""
+        try:
+            kind, theta = data["kind"], data["theta"]
+            names = reward_feature_names(kind)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: not a reward ({exc})") from None
+        if set(theta) != set(names):
+            raise ValueError(f"{where}: theta components do not match the {kind!r} reward features")
+        return cls(np.array([theta[n] for n in names]), kind)

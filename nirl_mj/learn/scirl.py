@@ -20,7 +20,7 @@ classifier, and trains it to predict the expert's actions. The algorithm, in the
 
 Readings, each with its reason (docs/ALGORITHM.md, "Baselines"):
 
-- l = ``NirlConfig.margin_loss`` (0.1, not the paper's 1) and theta kept in the ball ||theta|| <= 1
+- l = ``LearnerConfig.margin_loss`` (0.1, not the paper's 1) and theta kept in the ball ||theta|| <= 1
   (projection after each step) instead of the paper's lambda/2 ||theta||^2 term, its constrained
   form: the margin then has the meaning it has in the default NIRL (rewards in the units of the
   features, in [0, 1]). Without a constraint or lambda the criterion is homogeneous in (theta, l)
@@ -37,6 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from nirl_mj.learn.config import LoopConfig, ScirlConfig
 from nirl_mj.learn.mmp import discounted_suffix_sums, mmp_objective, project_to_ball, structured_loss
 
 __all__ = ["heuristic_expectations", "minimise_scirl", "ScirlStep"]
@@ -85,13 +86,13 @@ def minimise_scirl(
 class ScirlStep:
     """SCIRL's reward step: theta from the demonstrations alone, computed once, then fixed.
 
-    ``config`` is a :class:`nirl_mj.learn.loop.NirlConfig` (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
     ``margin_loss``, ``scirl_steps``, ``scirl_step_size``). The convergence measure is J at theta:
     the mean hinge of the expert's pairs (0 when every margin is met).
     """
 
-    def __init__(self, config, demos: Sequence) -> None:
-        self.config = config
+    def __init__(self, loop: LoopConfig, own: ScirlConfig, demos: Sequence) -> None:
+        self.loop, self.own = loop, own
         self.demos = list(demos)
         self.theta: np.ndarray | None = None
         self.j = float("nan")
@@ -101,15 +102,14 @@ class ScirlStep:
         from nirl_mj.data.trajectory import stack_pairs
         from nirl_mj.learn.reward import all_action_features, trajectory_pair_features
 
-        c = self.config
         phi, actions = stack_pairs(self.demos)
-        fs = trajectory_pair_features(self.demos, c.reward_features)
-        mu_taken = np.concatenate([discounted_suffix_sums(f, c.gamma) for f in fs])  # step 1
+        fs = trajectory_pair_features(self.demos, self.loop.reward_features)
+        mu_taken = np.concatenate([discounted_suffix_sums(f, self.loop.gamma) for f in fs])  # step 1
         mu_all = heuristic_expectations(
-            mu_taken, all_action_features(phi, c.reward_features), actions, c.gamma
+            mu_taken, all_action_features(phi, self.loop.reward_features), actions, self.loop.gamma
         )
-        loss = structured_loss(actions, c.margin_loss)  # L(s, a_E) = 0
-        return minimise_scirl(mu_all, mu_taken, loss, c.scirl_steps, c.scirl_step_size)
+        loss = structured_loss(actions, self.loop.margin_loss)  # L(s, a_E) = 0
+        return minimise_scirl(mu_all, mu_taken, loss, self.own.scirl_steps, self.own.scirl_step_size)
 
     def update(
         self,

@@ -1,0 +1,191 @@
+"""A training run's directory on disk: every file name, every read and every write.
+
+A run directory holds:
+
+- ``run.json``: the run record (task, learner config, seed, demonstrations, the arena
+  seeds used; when training has finished also the selection and ``train_seeds``);
+- ``metrics.jsonl``: one JSON object per finished iteration;
+- ``checkpoint.npz``: the whole learner state after the last finished iteration;
+- ``policy.npz``: the selected and the last network (``selected/W1``, ``last/W2``, ...);
+- ``reward.json``: the selected reward (``{"kind", "theta": {name: value}}``);
+- ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``).
+
+Every write is atomic (``nirl_mj.data.atomic``), so a killed process leaves each file
+either as it was or as it became. The record is written first and last: a run counts
+as finished once its record holds ``train_seeds`` and the policy file exists.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from nirl_mj.data.atomic import write_npz, write_text
+
+RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
+POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
+POLICIES = ("selected", "last")
+
+
+class RunError(ValueError):
+    """A run directory is missing, foreign, corrupted or would be overwritten."""
+
+
+@dataclass(frozen=True)
+class RunDir:
+    """The files of one training run under ``path``."""
+
+    path: Path
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        object.__setattr__(self, "path", Path(path))
+
+    def __str__(self) -> str:
+        return str(self.path)
+
+    def file(self, name: str) -> Path:
+        """The path of one of the run's files (one of the ``*_FILE`` names)."""
+        return self.path / name
+
+    # -- state ---------------------------------------------------------------------------
+
+    @property
+    def is_run(self) -> bool:
+        """Whether a run record exists here."""
+        return self.file(RUN_FILE).is_file()
+
+    @property
+    def has_checkpoint(self) -> bool:
+        return self.file(CHECKPOINT_FILE).is_file()
+
+    @property
+    def is_finished(self) -> bool:
+        """Training ended and wrote its policy, reward and final record."""
+        return self.is_run and self.file(POLICY_FILE).is_file() and "train_seeds" in self.read_record()
+
+    def is_empty(self) -> bool:
+        return not self.path.exists() or not any(self.path.iterdir())
+
+    def names(self) -> set[str]:
+        """The names of the files present."""
+        return {p.name for p in self.path.iterdir()} if self.path.is_dir() else set()
+
+    # -- the record ------------------------------------------------------------------------
+
+    def read_record(self) -> dict[str, Any]:
+        """``run.json``, with a clear error if this is not a run directory."""
+        path = self.file(RUN_FILE)
+        if not path.is_file():
+            raise RunError(
+                f"{self.path} is not a nirl-mj run directory (no {RUN_FILE}); train one with `nirl-mj train`"
+            )
+        try:
+            return json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise RunError(f"{path} is corrupted: {exc}") from None
+
+    def write_record(self, record: Mapping[str, Any]) -> None:
+        self.path.mkdir(parents=True, exist_ok=True)
+        write_text(self.file(RUN_FILE), json.dumps(record, indent=1))
+
+    # -- metrics ---------------------------------------------------------------------------
+
+    def read_metrics(self) -> list[dict[str, Any]]:
+        """Every finished iteration's metrics row (none before the first)."""
+        path = self.file(METRICS_FILE)
+        lines = path.read_text().splitlines() if path.exists() else []
+        return [json.loads(line) for line in lines if line.strip()]
+
+    def iterations_done(self) -> int:
+        """Metrics rows written so far (finished iterations, possibly one past the checkpoint)."""
+        path = self.file(METRICS_FILE)
+        return len(path.read_text().splitlines()) if path.exists() else 0
+
+    def start_metrics(self) -> None:
+        write_text(self.file(METRICS_FILE), "")
+
+    def append_metrics(self, row: Mapping[str, Any]) -> None:
+        # An append, not an atomic rewrite: a crash may leave one row past the checkpoint,
+        # which keep_metrics removes on resume.
+        with open(self.file(METRICS_FILE), "a") as f:
+            f.write(json.dumps(dict(row)) + "\n")
+
+    def keep_metrics(self, iterations: int) -> None:
+        """Keeps the first ``iterations`` rows (those the checkpoint covers)."""
+        path = self.file(METRICS_FILE)
+        lines = path.read_text().splitlines(keepends=True) if path.exists() else []
+        write_text(path, "".join(lines[:iterations]))
+
+    # -- arrays ----------------------------------------------------------------------------
+
+    def read_checkpoint(self) -> dict[str, np.ndarray]:
+        path = self.file(CHECKPOINT_FILE)
+        if not path.is_file():
+            raise RunError(f"{self.path} has no checkpoint to resume from ({CHECKPOINT_FILE})")
+        return self._read_npz(path, "start a new run in another directory")
+
+    def write_checkpoint(self, arrays: Mapping[str, np.ndarray]) -> None:
+        write_npz(self.file(CHECKPOINT_FILE), dict(arrays))
+
+    def read_policy(self, which: str = "selected") -> dict[str, np.ndarray]:
+        """The weights of the ``selected`` or ``last`` network, by name (``W1``, ``W2``)."""
+        if which not in POLICIES:
+            raise RunError(f"unknown policy {which!r}; accepted: selected, last or an iteration number")
+        path = self.file(POLICY_FILE)
+        if not path.is_file():
+            raise RunError(
+                f"{self.path} has no {POLICY_FILE}: its training has not finished (resume it with --resume)"
+            )
+        arrays = self._read_npz(path, "train the run again")
+        return {k.split("/", 1)[1]: v for k, v in arrays.items() if k.startswith(which + "/")}
+
+    def write_policy(self, selected: Mapping[str, np.ndarray], last: Mapping[str, np.ndarray]) -> None:
+        arrays = {f"selected/{k}": v for k, v in selected.items()}
+        write_npz(self.file(POLICY_FILE), arrays | {f"last/{k}": v for k, v in last.items()})
+
+    @staticmethod
+    def _read_npz(path: Path, remedy: str) -> dict[str, np.ndarray]:
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                return {k: data[k] for k in data.files}
+        except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+            raise RunError(f"{path} is corrupted ({exc}); {remedy}") from None
+
+    # -- reward and evaluations ----------------------------------------------------------
+
+    @property
+    def has_reward(self) -> bool:
+        return self.file(REWARD_FILE).is_file()
+
+    def read_reward(self) -> dict[str, Any]:
+        """The selected reward as written by :meth:`write_reward`."""
+        path = self.file(REWARD_FILE)
+        try:
+            return json.loads(path.read_text())
+        except FileNotFoundError:
+            raise RunError(f"{self.path} has no {REWARD_FILE}: its training has not finished") from None
+        except json.JSONDecodeError as exc:
+            raise RunError(f"{path} is corrupted: {exc}") from None
+
+    def write_reward(self, reward: Mapping[str, Any]) -> None:
+        write_text(self.file(REWARD_FILE), json.dumps(dict(reward), indent=1))
+
+    def read_evaluations(self) -> dict[str, Any]:
+        path = self.file(EVAL_FILE)
+        if not path.exists():
+            return {}
+        try:
+            return json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise RunError(f"{path} is corrupted: {exc}") from None
+
+    def add_evaluation(self, key: str, result: Mapping[str, Any]) -> None:
+        """Stores ``result`` under ``key`` in ``eval.json``, keeping the other entries."""
+        write_text(self.file(EVAL_FILE), json.dumps({**self.read_evaluations(), key: dict(result)}, indent=1))

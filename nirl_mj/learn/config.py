@@ -1,0 +1,229 @@
+"""The learner's configuration: the shared loop's, one per reward step, and the named presets.
+
+:class:`LoopConfig` holds what every method shares (Algorithm 1 less its reward
+step: rollouts, SARSA, backpropagation, selection); each reward step has its own
+config (:data:`STEP_CONFIGS`), and :attr:`LoopConfig.method` says which one
+runs. A :class:`LearnerConfig` is the loop's config with every step's, so that a
+setting of a step that does not run is kept (and compared on resume) rather than
+refused: an experiment may set RE's horizon once for all its methods.
+
+On disk (``run.json``, ``experiment.json``) a learner config is one flat
+``{field: value}`` object, field names unique across the loop and the steps;
+:meth:`LearnerConfig.to_dict` and :meth:`LearnerConfig.from_dict` convert, so
+runs written before the split load unchanged.
+
+The named variants are data, :data:`PRESETS`: changes from the field defaults
+(``"default"``, the project's, and ``"paper"``, the algorithm as the paper
+writes it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+METHODS = ("nirl", "al", "re", "scirl")
+"""The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
+REWARD_SOURCES = ("learned", "progress", "constant")
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """The shared loop (``nirl_mj.learn.loop.IrlLoop``), and the settings several reward steps read."""
+
+    variant: str = "default"  # the preset this config started from (a label in run records)
+    method: str = "nirl"  # the reward step: "nirl" (max margin, eq. 11-13) or a baseline (learn/methods.py)
+    episodes: int = 60  # ~2-4 min per run on one core (planar training drive)
+    trajectories_per_episode: int = 10
+    gamma: float = 0.65  # eq. 14
+    alpha: float = 0.8  # eq. 14
+    eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
+    eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
+    reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
+    margin_loss: float = (
+        0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
+    )
+    epsilon: float = float("-inf")  # stop when the reward step's margin t <= epsilon (paper: 0)
+    reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
+    terminal_arrival_value: float = 1.0  # value of reaching the target (a terminal state)
+    net_step: float = 0.4  # sigma_2 of eq. 15
+    net_l2: float = 1e-3  # lambda_2 of eq. 15
+    replay_episodes: int = 10  # 0: train on this episode's pairs only (paper)
+    net_epochs: int = 4  # full-batch steps (no replay) or minibatch epochs (replay)
+    batch_size: int = 64
+    input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
+    selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
+    validation_arenas: int = 20
+    validate_every: int = 5
+    # validation selection: the best `final_candidates` policies are re-validated on as many
+    # new validation arenas, and the best over both sets is chosen (1: no second round)
+    final_candidates: int = 3
+    reward_source: str = "learned"  # "progress" / "constant": the controls (a known reward, no step)
+    train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
+
+    def __post_init__(self) -> None:
+        _choice("method", self.method, METHODS)
+        _choice("reward_source", self.reward_source, REWARD_SOURCES)
+
+
+@dataclass(frozen=True)
+class MaxMarginConfig:
+    """NIRL's reward step, maximum margin planning (eq. 11-13; ``learn/mmp.py``)."""
+
+    matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums
+    # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
+    # discounted sum (its own behaviour); 0: the expert's own continuation,
+    # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E) (akin to SCIRL's heuristic, which uses
+    # mu_E(s, a_E): docs/ALGORITHM.md); in between: a mixture.
+    future_mix: float = 0.0
+    mmp_lambda: float = 0.0  # lambda_1 of eq. 13
+    mmp_steps: int = 30
+    mmp_step_size: float = 0.5  # sigma_1
+    mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
+
+
+@dataclass(frozen=True)
+class ApprenticeshipConfig:
+    """AL's reward step, the projection variant (``learn/al.py``)."""
+
+    # what a feature expectation is. "trajectory": eq. 11, each trajectory's discounted sum from its
+    # start (the papers' reading; with gamma 0.65 it sees ~3 steps); "suffix": the mean discounted
+    # suffix sum over every visited pair (sees every state)
+    al_expectations: str = "trajectory"
+
+
+@dataclass(frozen=True)
+class RelativeEntropyConfig:
+    """RE-IRL's reward step (``learn/reirl.py``)."""
+
+    re_expectations: str = "trajectory"  # as ApprenticeshipConfig.al_expectations
+    re_horizon: int = 16  # pairs per RE sample (and its importance ratio); gamma^16 ~ 1e-3
+    re_step: float = 0.5  # gradient-ascent step on the dual g(theta)
+    re_steps: int = 30  # ascent steps per iteration, warm-started from the last theta
+    re_pool: int = 10  # iterations whose rollouts are pooled as importance samples
+    re_confidence: float = 0.95  # Hoeffding confidence of the L1 widths epsilon_i (0: no L1 term)
+    # how the L1 term -sum eps_i |theta_i| is stepped. "subgradient" (the paper): theta_i flips by
+    # +-re_step eps_i around 0 every step; "proximal" (soft-thresholding): such theta_i rest at 0
+    re_l1_step: str = "proximal"
+
+
+@dataclass(frozen=True)
+class ScirlConfig:
+    """SCIRL's reward step (``learn/scirl.py``)."""
+
+    scirl_steps: int = 40  # normalised subgradient steps (as the authors' code)
+    scirl_step_size: float = 3.0  # step size / (k + 1) at step k (authors: 3 / (k + 1))
+
+
+STEP_CONFIGS: dict[str, type] = {
+    "nirl": MaxMarginConfig,
+    "al": ApprenticeshipConfig,
+    "re": RelativeEntropyConfig,
+    "scirl": ScirlConfig,
+}
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "default": {},
+    # The algorithm as the paper writes it (docs/ALGORITHM.md lists what "default" changes, and why).
+    "paper": {
+        "eta": 10.0,
+        "eta_final": 10.0,
+        "reward_features": "paper",
+        "matching": "paper",
+        "future_mix": 1.0,
+        "episodes": 120,
+        "margin_loss": 1.0,
+        "mmp_step_decay": 0.0,
+        "reward_scaling": False,
+        "terminal_arrival_value": 0.0,
+        "replay_episodes": 0,
+        "net_epochs": 20,
+        "input_scaling": False,
+        "selection": "demo_accuracy",
+        "epsilon": 0.0,
+    },
+}
+VARIANTS = tuple(PRESETS)
+
+
+def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
+    if value not in accepted:
+        raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+
+
+def _owners() -> dict[str, type]:
+    """Every flat field name -> the config class that holds it."""
+    owners = {f.name: LoopConfig for f in dataclasses.fields(LoopConfig)}
+    for cls in STEP_CONFIGS.values():
+        owners |= {f.name: cls for f in dataclasses.fields(cls)}
+    return owners
+
+
+@dataclass(frozen=True)
+class LearnerConfig:
+    """The loop's config and every reward step's; :attr:`step` is the one that runs."""
+
+    loop: LoopConfig = field(default_factory=LoopConfig)
+    steps: Mapping[str, Any] = field(default_factory=lambda: {m: cls() for m, cls in STEP_CONFIGS.items()})
+
+    @property
+    def step(self) -> Any:
+        """The config of the reward step that runs (``loop.method``'s)."""
+        return self.steps[self.loop.method]
+
+    @staticmethod
+    def field_defaults() -> dict[str, Any]:
+        """Every flat field name with its default value (for checking overrides)."""
+        return LearnerConfig().to_dict()
+
+    @classmethod
+    def preset(cls, name: str = "default", **changes: Any) -> LearnerConfig:
+        """The preset ``name`` (:data:`PRESETS`) with flat ``changes`` on top."""
+        _choice("variant", name, VARIANTS)
+        return cls.from_dict({**PRESETS[name], "variant": name, **changes})
+
+    @classmethod
+    def from_dict(cls, flat: Mapping[str, Any]) -> LearnerConfig:
+        """A config from flat ``{field: value}`` (a run record's); missing fields take their defaults."""
+        owners = _owners()
+        unknown = sorted(set(flat) - set(owners))
+        if unknown:
+            raise ValueError(
+                f"unknown learner setting(s) {', '.join(unknown)}; accepted: {', '.join(owners)}"
+            )
+
+        def build(config_cls: type) -> Any:
+            return config_cls(**{k: v for k, v in flat.items() if owners[k] is config_cls})
+
+        return cls(build(LoopConfig), {m: build(c) for m, c in STEP_CONFIGS.items()})
+
+    def to_dict(self) -> dict[str, Any]:
+        """The flat form stored in run records: the loop's fields, then every step's."""
+        flat = dataclasses.asdict(self.loop)
+        for config in self.steps.values():
+            flat |= dataclasses.asdict(config)
+        return flat
+
+    def replace(self, **changes: Any) -> LearnerConfig:
+        """A copy with flat ``changes`` (field names of the loop or of any step)."""
+        return LearnerConfig.from_dict({**self.to_dict(), **changes})
+
+
+def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Flat field changes checked against the fields' default types (whole numbers become floats
+    where a float is expected); ``where`` names the source in errors, ``exclude`` lists fields that
+    are set elsewhere. Raises ValueError naming the field and what it accepts."""
+    defaults = {k: v for k, v in LearnerConfig.field_defaults().items() if k not in exclude}
+    out = {}
+    for key, value in changes.items():
+        if key not in defaults:
+            raise ValueError(f"{where}: unknown learner setting {key!r}; accepted: {', '.join(defaults)}")
+        kind = type(defaults[key])
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not kind:
+            raise ValueError(f"{where}.{key} = {value!r}: expected a {kind.__name__}")
+        out[key] = value
+    return out

@@ -1,0 +1,57 @@
+"""The learner's config: the shared loop's, one per reward step, presets as data, flat on disk."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from nirl_mj.learn.config import (
+    PRESETS,
+    STEP_CONFIGS,
+    LearnerConfig,
+    LoopConfig,
+    MaxMarginConfig,
+    RelativeEntropyConfig,
+    checked_changes,
+)
+
+LEGACY = Path(__file__).parent / "data" / "legacy_run_aa67077" / "run.json"
+
+
+def test_a_flat_record_written_before_the_split_loads_and_writes_back_the_same():
+    flat = json.loads(LEGACY.read_text())["config"]
+    config = LearnerConfig.from_dict(flat)
+    assert config.to_dict() == flat
+    assert isinstance(config.step, MaxMarginConfig) and config.loop.method == "nirl"
+
+
+def test_every_setting_has_one_owner_and_the_step_follows_the_method():
+    names = [f for cls in (LoopConfig, *STEP_CONFIGS.values()) for f in cls.__dataclass_fields__]
+    assert len(names) == len(set(names))
+    config = LearnerConfig.preset("default", method="re", re_horizon=8, mmp_steps=3)
+    assert isinstance(config.step, RelativeEntropyConfig) and config.step.re_horizon == 8
+    assert config.steps["nirl"].mmp_steps == 3  # kept for the step that does not run
+    assert config.replace(re_horizon=4).step.re_horizon == 4 and config.step.re_horizon == 8
+
+
+def test_presets_are_data_applied_over_the_defaults():
+    paper = LearnerConfig.preset("paper", episodes=3)
+    assert paper.loop.variant == "paper" and paper.loop.episodes == 3
+    for key, value in PRESETS["paper"].items():
+        if key != "episodes":
+            assert paper.to_dict()[key] == value
+    assert LearnerConfig.preset().to_dict() == {**LearnerConfig().to_dict(), "variant": "default"}
+    with pytest.raises(ValueError, match="unknown variant 'x'; accepted: default, paper"):
+        LearnerConfig.preset("x")
+
+
+def test_bad_settings_are_refused_with_the_field_and_what_it_accepts():
+    with pytest.raises(ValueError, match="unknown learner setting.*nope"):
+        LearnerConfig.from_dict({"nope": 1})
+    with pytest.raises(ValueError, match="unknown method 'gail'; accepted: nirl, al, re, scirl"):
+        LearnerConfig.preset(method="gail")
+    assert checked_changes({"gamma": 1, "episodes": 3}, "--config") == {"gamma": 1.0, "episodes": 3}
+    with pytest.raises(ValueError, match=r"--config.episodes = 'abc': expected a int"):
+        checked_changes({"episodes": "abc"}, "--config")
+    with pytest.raises(ValueError, match="unknown learner setting 'variant'"):
+        checked_changes({"variant": "paper"}, "--config", exclude=("variant",))

@@ -1,0 +1,47 @@
+"""The run directory type owns every file of a run: names, reads, writes, clear errors."""
+
+import numpy as np
+import pytest
+
+from nirl_mj.data.rundir import EVAL_FILE, METRICS_FILE, RunDir, RunError
+
+
+def test_a_run_directory_round_trips_its_files(tmp_path):
+    run = RunDir(tmp_path / "run")
+    assert run.is_empty() and not run.is_run and not run.is_finished
+    run.write_record({"seed": 1})
+    run.start_metrics()
+    for i in range(3):
+        run.append_metrics({"episode": i})
+    assert run.iterations_done() == 3
+    run.keep_metrics(2)  # what a resume does with a row past the checkpoint
+    assert run.read_metrics() == [{"episode": 0}, {"episode": 1}]
+    w = {"W1": np.arange(6.0).reshape(2, 3), "W2": np.ones(2)}
+    run.write_checkpoint({"theta": np.zeros(3)})
+    run.write_policy(w, {k: -v for k, v in w.items()})
+    np.testing.assert_array_equal(run.read_policy("last")["W1"], -w["W1"])
+    assert not run.is_finished  # the final record has not been written
+    run.write_record({"seed": 1, "train_seeds": []})
+    assert run.is_finished and run.has_checkpoint
+    run.add_evaluation("a", {"x": 1})
+    run.add_evaluation("b", {"x": 2})
+    assert run.read_evaluations() == {"a": {"x": 1}, "b": {"x": 2}}
+    assert {METRICS_FILE, EVAL_FILE} <= run.names()
+
+
+def test_missing_or_corrupt_files_give_clear_errors(tmp_path):
+    run = RunDir(tmp_path)
+    with pytest.raises(RunError, match="not a nirl-mj run directory"):
+        run.read_record()
+    with pytest.raises(RunError, match="no checkpoint to resume from"):
+        run.read_checkpoint()
+    with pytest.raises(RunError, match="has not finished"):
+        run.read_policy()
+    with pytest.raises(RunError, match="accepted: selected, last"):
+        run.read_policy("best")
+    run.file(EVAL_FILE).write_text("{")
+    with pytest.raises(RunError, match="eval.json is corrupted"):
+        run.read_evaluations()
+    run.file("policy.npz").write_bytes(b"not a zip")
+    with pytest.raises(RunError, match="policy.npz is corrupted"):
+        run.read_policy()
