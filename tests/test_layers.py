@@ -40,8 +40,8 @@ ALLOWED: dict[str, frozenset[str]] = {
 """Room -> the rooms whose modules it may import ("" is the top-level package module)."""
 
 FORBIDDEN_EXTERNAL: dict[str, frozenset[str]] = {
-    "learn": frozenset({"mujoco", "dm_control"}),
-    "data": frozenset({"mujoco", "dm_control", "torch"}),
+    "learn": frozenset({"mujoco", "dm_control", "dm_env"}),
+    "data": frozenset({"mujoco", "dm_control", "dm_env", "torch"}),
 }
 """Room -> third-party top-level packages it must not import."""
 

@@ -22,7 +22,7 @@ import dm_env
 import numpy as np
 
 from nirl_mj.data.features import N_ACTIONS
-from nirl_mj.experts import Expert
+from nirl_mj.sim.episode import Agent as Expert
 
 _SLIPS = {0: (1, 3), 1: (2,), 2: (1,), 3: (4,), 4: (3,), 5: (5,)}
 

@@ -27,8 +27,8 @@ import dataclasses
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
-import dm_env
 import numpy as np
 import torch
 
@@ -57,11 +57,12 @@ class NetworkAgent:
         self.net, self.scaled, self.eta, self.rng = net, scaled, eta, rng
         self.kind = "nirl"
 
-    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
+    def reset(self, env: Any, timestep: Any) -> None:
         # The network does not change during an episode: read its weights once.
         self._weights = (self.net.W1.detach().numpy(), self.net.W2.detach().numpy())
 
-    def act(self, timestep: dm_env.TimeStep) -> int:
+    def act(self, timestep: Any) -> int:
+        """The action for a dm_env timestep (reads ``timestep.observation["features"]``, phi(s))."""
         x = network_inputs(timestep.observation["features"][None], self.scaled)
         q = network.q_values(self.net, x, self._weights)[0]
         if self.eta is None:
