@@ -14,7 +14,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from nirl_mj.experiments.demos import ExpertConfig, collect, default_workers
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.executors import default_workers
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert
 from nirl_mj.sim.episode import run_episode

@@ -79,7 +79,7 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from nirl_mj.experiments.demos import default_workers
+    from nirl_mj.experiments.executors import default_workers
     from nirl_mj.experiments.main_job import main_job
     from nirl_mj.inspect.figures import results_table
     from nirl_mj.sim.spec import apply_overrides, load_task
@@ -145,7 +145,8 @@ def _open_recording(path: str | None, overwrite: bool):
 
 def _cmd_demos(args: argparse.Namespace) -> int:
     from nirl_mj.data.trajectory import save_dataset, summarise
-    from nirl_mj.experiments.demos import ExpertConfig, collect, default_workers
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+    from nirl_mj.experiments.executors import default_workers
     from nirl_mj.sim.spec import apply_overrides, load_task
 
     out = Path(args.out)

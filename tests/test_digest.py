@@ -65,7 +65,7 @@ def tiny_run_digest(tmp: Path) -> str:
     results = json.loads((out / "results.json").read_text())
     h.update(json.dumps(results, sort_keys=True).encode())
     _arrays_digest(h, out / "demos.npz")
-    _arrays_digest(h, out / "nirl" / "policy.npz")
+    _arrays_digest(h, out / "runs" / "NIRL" / "0" / "policy.npz")
     return h.hexdigest()
 
 

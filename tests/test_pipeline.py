@@ -17,7 +17,15 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
                          "control: SARSA on progress", "control: constant reward"}  # fmt: skip
     results = json.loads((out / "results.json").read_text())["results"]
     assert all(r["tests"] == 2 for r in results.values())
-    for name in ("report.md", "margin.png", "cost.png", "weights.png", "paths.png", "nirl/reward.json"):
+    for name in (
+        "report.md",
+        "margin.png",
+        "cost.png",
+        "weights.png",
+        "paths.png",
+        "runs/NIRL/0/reward.json",
+        "tests/NIRL.npz",
+    ):
         assert (out / name).stat().st_size > 0, name
     report = (out / "report.md").read_text()
     assert "| NIRL |" in report and "| always forward |" in report

@@ -98,10 +98,11 @@ class RunDir:
     # -- metrics ---------------------------------------------------------------------------
 
     def read_metrics(self) -> list[dict[str, Any]]:
-        """Every finished iteration's metrics row (none before the first)."""
+        """Every finished iteration's metrics row (none before the first). A row still being
+        appended by another process (no newline yet) is left for the next read."""
         path = self.file(METRICS_FILE)
-        lines = path.read_text().splitlines() if path.exists() else []
-        return [json.loads(line) for line in lines if line.strip()]
+        lines = path.read_text().splitlines(keepends=True) if path.exists() else []
+        return [json.loads(line) for line in lines if line.endswith("\n") and line.strip()]
 
     def iterations_done(self) -> int:
         """Metrics rows written so far (finished iterations, possibly one past the checkpoint)."""

@@ -1,19 +1,24 @@
-"""Collecting demonstrations, serially or over processes, with identical results.
+"""Collecting demonstrations as experiment cells, serially or over processes, with identical results.
 
-Episode i of a collection seeded S runs in the arena of
-``rollout.episode_seed(S, i)`` with a freshly reset expert, so an episode does
-not depend on which process ran it or what ran before it.
+Episode i of a collection seeded S runs in the arena of ``seeds.episode_seed(S, i)``
+with a freshly reset expert, so an episode does not depend on which process ran it
+or what ran before it. Each episode is one cell of an
+:class:`~nirl_mj.experiments.executors.Executor` (serial for one worker, local
+processes for more): the same executors, retries and process pool as every
+experiment. A cell writes its trajectory as a one-episode dataset in a scratch
+directory (cell results travel as JSON; a dataset file keeps every array exact).
 """
 
 from __future__ import annotations
 
-import multiprocessing
-import os
+import tempfile
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
 
-from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.data.trajectory import Trajectory, load_dataset, save_dataset
+from nirl_mj.experiments.executors import Cell, Executor, Failure
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert
 from nirl_mj.sim.episode import run_episode
@@ -31,38 +36,30 @@ class ExpertConfig:
     seed: int = 0
 
 
-def default_workers() -> int:
-    """All cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 class _Runner:
-    """One environment and one expert, re-used for many episodes."""
+    """One environment and one expert, re-used for many episodes of one collection."""
 
-    def __init__(self, task: TaskSpec, expert: ExpertConfig, seed: int) -> None:
+    def __init__(self, task: TaskSpec, expert: ExpertConfig) -> None:
         from nirl_mj.sim.task import make_env
 
+        self.key = (task, expert)
         self.env = make_env(task)
         self.expert = make_expert(**asdict(expert))
-        self.seed = seed
-
-    def __call__(self, episode: int) -> tuple[int, Trajectory]:
-        return episode, run_episode(self.env, self.expert, episode_seed(self.seed, episode))
 
 
-_worker_runner: _Runner | None = None
+_runner: _Runner | None = None  # this process's, kept between the cells of one collection
 
 
-def _init_worker(task: TaskSpec, expert: ExpertConfig, seed: int) -> None:
-    global _worker_runner
-    _worker_runner = _Runner(task, expert, seed)
-
-
-def _run_in_worker(episode: int) -> tuple[int, Trajectory]:
-    return _worker_runner(episode)
+def demo_cell(task: TaskSpec, expert: ExpertConfig, seed: int, episode: int, folder: str) -> str:
+    """Records demonstration ``episode`` of the collection seeded ``seed`` into ``folder``;
+    returns the one-episode dataset's path."""
+    global _runner
+    if _runner is None or _runner.key != (task, expert):
+        _runner = _Runner(task, expert)
+    trajectory = run_episode(_runner.env, _runner.expert, episode_seed(seed, episode))
+    path = Path(folder) / f"episode-{episode:06d}.npz"
+    save_dataset(path, [trajectory], overwrite=True)  # a retried cell writes its episode again
+    return str(path)
 
 
 def collect(
@@ -73,32 +70,25 @@ def collect(
     workers: int = 1,
     on_episode: Callable[[Trajectory], None] | None = None,
 ) -> list[Trajectory]:
-    """Runs ``episodes`` demonstrations; ``on_episode`` is called as each one finishes
-    in episode order; the result is the same whatever ``workers`` is."""
+    """Runs ``episodes`` demonstrations on ``workers`` processes (this one for 1); ``on_episode``
+    is called as each one finishes; the result, in episode order, is the same whatever ``workers`` is."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     make_expert(**asdict(expert))  # a bad configuration fails here, not in a worker
-    results: dict[int, Trajectory] = {}
-    if workers == 1 or episodes == 1:
-        runner = _Runner(task, expert, seed)
-        jobs = map(runner, range(episodes))
-        for i, trajectory in jobs:
-            results[i] = trajectory
-            if on_episode:
-                on_episode(trajectory)
-    else:
-        # spawn: a fresh interpreter per worker, no inherited MuJoCo or GL state.
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(
-            min(workers, episodes),
-            mp_context=context,
-            initializer=_init_worker,
-            initargs=(task, expert, seed),
-        ) as pool:
-            for i, trajectory in pool.map(_run_in_worker, range(episodes)):
-                results[i] = trajectory
-                if on_episode:
-                    on_episode(trajectory)
-    return [results[i] for i in range(episodes)]
+    done: dict[str, Trajectory] = {}
+
+    def arrived(cell_id: str, path: Any, failure: Failure | None) -> None:
+        if failure is not None:
+            raise RuntimeError(f"demonstration {cell_id} failed: {failure.error}")
+        done[cell_id] = load_dataset(path)[0]
+        if on_episode:
+            on_episode(done[cell_id])
+
+    with tempfile.TemporaryDirectory(prefix="nirl-mj-demos-") as folder:
+        cells = [Cell(f"demo-{i:06d}", demo_cell, (task, expert, seed, i, folder)) for i in range(episodes)]
+        executor = "serial" if workers == 1 or episodes == 1 else "local"
+        with Executor(executor, min(workers, episodes), retries=0) as runner:
+            runner.run(cells, on_done=arrived)
+        return [done[cell.id] for cell in cells]

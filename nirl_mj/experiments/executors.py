@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
 import re
 import time
 import traceback
@@ -43,6 +44,14 @@ from nirl_mj.data.atomic import write_text
 EXECUTORS = ("serial", "local", "ray")
 RAY_MISSING = "the ray executor needs Ray: pip install 'nirl-mj[ray]' (or pip install 'ray>=2.9')"
 _ID = re.compile(r"^[A-Za-z0-9_.=+-]+$")
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
 
 
 class ExecutorError(RuntimeError):
@@ -142,8 +151,6 @@ class Executor:
         address: str | None = None,
         retries: int = 2,
     ) -> None:
-        from nirl_mj.experiments.demos import default_workers
-
         if executor not in EXECUTORS:
             raise ExecutorError(f"unknown executor {executor!r}; accepted: {', '.join(EXECUTORS)}")
         if workers is not None and workers < 1:

@@ -80,7 +80,7 @@ def prepare(
 ) -> tuple[Path, dict[tuple[str, int], RunJob]]:
     """Creates or re-opens OUT (refusing another experiment), makes the demonstrations once,
     and returns OUT (absolute) with every (method, run) job."""
-    from nirl_mj.experiments.demos import default_workers
+    from nirl_mj.experiments.executors import default_workers
 
     execution.check_output(out)
     out = open_output(out, experiment)

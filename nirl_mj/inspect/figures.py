@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,11 +31,6 @@ _COLOURS = {
 }
 
 
-def read_metrics(run_dir: str | Path) -> list[dict]:
-    path = Path(run_dir) / "metrics.jsonl"
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
 def _line_plot(path: Path, series: dict[str, Sequence[float]], ylabel: str, title: str) -> None:
     fig, ax = plt.subplots(figsize=(6, 3.2), dpi=110)
     for label, values in series.items():
@@ -53,9 +47,8 @@ def _line_plot(path: Path, series: dict[str, Sequence[float]], ylabel: str, titl
     plt.close(fig)
 
 
-def training_plots(run_dir: str | Path, out_dir: str | Path) -> list[Path]:
-    """Fig. 4a, 4b, 7 and the training curves of the run in ``run_dir``; returns the files."""
-    m = read_metrics(run_dir)
+def training_plots(m: Sequence[dict], out_dir: str | Path) -> list[Path]:
+    """Fig. 4a, 4b, 7 and the training curves of a run's metrics rows ``m``; returns the files."""
     out = Path(out_dir)
     col = {k: [row[k] for row in m] for k in m[0]} if m else {}
     plots = {
