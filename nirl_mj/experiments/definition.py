@@ -148,13 +148,17 @@ class Experiment:
         )
 
 
-def load_experiment(path: str | Path, quick: bool = False) -> Experiment:
-    """Reads and validates an experiment file (a path, or a name under ``tasks/``)."""
-    path = Path(path)
+def load_experiment(path: str | Path, quick: bool = False, kind: str | None = None) -> Experiment:
+    """Reads and validates an experiment file (a path, or a name under ``tasks/``); with ``kind``,
+    refuses an experiment of another kind (naming the command that runs it)."""
+    given, path = path, Path(path)
     if path.suffix != ".toml" and not path.is_file():
         path = specs.TASKS_DIR / f"{path}.toml"
     data = specs.read_toml(path, "experiment file", ExperimentError)
-    return from_dict(data, str(path), path.parent, quick)
+    experiment = from_dict(data, str(path), path.parent, quick)
+    if kind is not None and experiment.kind != kind:
+        raise ExperimentError(f"{given} is a {experiment.kind} experiment: run it with `nirl-mj {experiment.kind}`")
+    return experiment
 
 
 def from_dict(

@@ -207,6 +207,12 @@ class Execution:
     retries: int = 2
     report_only: bool = False  # run nothing: report the cells already finished (a partial table)
 
+    def __post_init__(self) -> None:
+        if self.retries < 0:
+            raise ExperimentError(f"--retries {self.retries}: must be >= 0")
+        if self.address and self.executor != "ray":
+            raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
+
     def start(self, out: Path) -> CellRunner:
         """A runner storing finished cells in OUT/cells; use it as a context manager."""
         from nirl_mj.experiments.executors import CellStore, Executor

@@ -42,6 +42,13 @@ def run_config(record: dict[str, Any]) -> LearnerConfig:
         raise RunError(f"the run record's learner config is not readable ({exc})") from None
 
 
+def saved_settings(run_dir: str | os.PathLike) -> tuple[specs.TaskSpec, LearnerConfig, str, int]:
+    """What a resume continues with: the run's task, learner config, demonstrations path and seed."""
+    run = RunDir(run_dir)
+    record = run.read_record()
+    return specs.from_dict(record["task"], str(run.file(RUN_FILE))), run_config(record), record["demos"], record["seed"]
+
+
 def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Policy, dict]:
     """The trained greedy policy on phi(s) and the run's record.
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.data.assignments import parse_assignment
+
 TASKS_DIR = Path(__file__).resolve().parents[2] / "tasks"
 
 
@@ -330,13 +332,9 @@ def apply_overrides(spec: TaskSpec, assignments: list[str]) -> TaskSpec:
     ``control.speed=3`` or ``arena.start=[5, 5]``) and validates the result."""
     sections: dict[str, dict[str, Any]] = {}
     for text in assignments:
-        key, sep, value = text.partition("=")
-        section, dot, field_name = key.strip().partition(".")
-        if not sep or not dot or not field_name:
+        key, parsed = parse_assignment(text) or ("", None)
+        section, dot, field_name = key.partition(".")
+        if not dot or not field_name:
             raise SpecError(f"override {text!r}: expected SECTION.KEY=VALUE, e.g. control.speed=3")
-        try:
-            parsed = tomllib.loads(f"v = {value.strip()}")["v"]
-        except tomllib.TOMLDecodeError:
-            parsed = value.strip()  # a bare word, e.g. robot.drive=planar
         sections.setdefault(section, {})[field_name] = parsed
     return replace(spec, **sections) if sections else spec

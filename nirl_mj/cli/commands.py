@@ -1,0 +1,360 @@
+"""The ``nirl-mj`` commands: each takes the parsed arguments, calls the library and prints."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+from nirl_mj.data.assignments import parse_assignment
+from nirl_mj.data.rundir import RunDir
+from nirl_mj.data.trajectory import load_dataset, save_dataset, summarise
+from nirl_mj.experiments import compare, sweep
+from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.executors import default_workers
+from nirl_mj.experiments.main_job import main_job
+from nirl_mj.experiments.protocol import Execution
+from nirl_mj.experiments.seeds import episode_seed
+from nirl_mj.experiments.subjects import Subject, reference_subject, run_subject
+from nirl_mj.experiments.training import saved_settings, train
+from nirl_mj.experts import make_expert
+from nirl_mj.inspect import video
+from nirl_mj.inspect.figures import results_table
+from nirl_mj.inspect.recording import Recording, copy_recording, finish_training, record_demonstrations
+from nirl_mj.inspect.text import episode_line, evaluation_line, predictability_line, summary_lines
+from nirl_mj.learn.config import LearnerConfig, checked_changes
+from nirl_mj.learn.predictability import predictability
+from nirl_mj.learn.pretreat import map_pretreat
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.spec import SpecError, apply_overrides, load_task
+from nirl_mj.sim.task import make_env
+
+
+def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> tqdm:
+    return tqdm(total=total, unit=unit, file=sys.stderr, disable=getattr(args, "quiet", False), **kw)
+
+
+def _summary(trajectories: list, summary: dict) -> dict | None:
+    """Prints a dataset's summary and, with two or more episodes, its predictability from phi(s)."""
+    print(summary_lines(summary))
+    pred = predictability(trajectories) if len(trajectories) >= 2 else None
+    if pred:
+        print(predictability_line(pred))
+    return pred
+
+
+def _check_output(path: str | Path, overwrite: bool) -> Path:
+    """Fails before any work if ``path`` cannot be written or would overwrite results."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass --overwrite to replace it, or choose another --out")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise FileNotFoundError(f"cannot write {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise PermissionError(f"cannot write {path}: directory {parent} is not writable")
+    return path
+
+
+def _task(args: argparse.Namespace):
+    return apply_overrides(load_task(args.task), args.set)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    spec = _task(args)
+    if args.rerun:
+        _check_output(args.rerun, args.overwrite)
+    iterations = args.episodes or LearnerConfig.preset(args.variant).loop.episodes
+    bar = _bar(args, 3 * iterations, "iteration", desc="NIRL and 2 controls")
+
+    def progress(m: dict) -> None:
+        bar.update()
+        if m["margin"] == m["margin"]:  # a NIRL row (the controls learn no reward: margin NaN)
+            bar.set_postfix(margin=f"{m['margin']:.3f}", acc=f"{m['demo_accuracy']:.2f}",
+                            succ=f"{m['success_rate']:.1f}")  # fmt: skip
+
+    try:
+        results = main_job(args.out, spec, seed=args.seed, variant=args.variant, demos=args.demos,
+                           expert=args.expert, episodes=args.episodes, tests=args.tests,
+                           workers=args.workers or default_workers(), resume=args.resume,
+                           log=lambda text: bar.write(text, file=sys.stderr), on_metrics=progress)  # fmt: skip
+    finally:
+        bar.close()
+    print(results_table(results))
+    print(f"report: {Path(args.out) / 'report.md'}")
+    if args.rerun:
+        print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun)}")
+    if args.json:
+        print(json.dumps({name: r["success_rate"] for name, r in results.items()}))
+    return 0
+
+
+def cmd_rollout(args: argparse.Namespace) -> int:
+    env = make_env(_task(args))
+    spec, agent, trajectories = env.task.spec, make_expert(args.policy), []
+    print(f"task {spec.name}: {spec.arena.static_obstacles} static + {spec.arena.moving_obstacles} moving "
+          f"obstacles, {spec.control.speed} m/s, {spec.robot.drive} drive; policy {args.policy}; "
+          f"{args.episodes} episodes, seed {args.seed}", file=sys.stderr)  # fmt: skip
+    with _bar(args, args.episodes, "episode") as bar:
+        for i in range(args.episodes):
+            trajectories.append(run_episode(env, agent, episode_seed(args.seed, i)))
+            bar.update()
+            bar.write(f"episode {i:3d}  {episode_line(trajectories[-1])}", file=sys.stdout)
+    summary = summarise(trajectories)
+    print(summary_lines(summary))
+    if args.json:
+        print(json.dumps({**summary, "task": spec.name, "policy": args.policy, "seed": args.seed}))
+    return 0
+
+
+def cmd_demos(args: argparse.Namespace) -> int:
+    out = _check_output(args.out, args.overwrite)
+    if args.rerun:
+        _check_output(args.rerun, args.overwrite)
+    spec = _task(args)
+    expert = ExpertConfig(args.expert, args.base, args.slip, args.random_action, args.seed)
+    workers = args.workers or default_workers()
+    print(f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, "
+          f"seed {args.seed}, {workers} worker(s)", file=sys.stderr)  # fmt: skip
+    with _bar(args, args.episodes, "episode") as bar:
+
+        def progress(trajectory) -> None:
+            bar.update()
+            bar.set_postfix_str(trajectory.outcome)
+
+        trajectories = collect(spec, expert, args.episodes, args.seed, workers, progress)
+    save_dataset(out, trajectories, overwrite=args.overwrite)
+    summary = summarise(trajectories)
+    pred = _summary(trajectories, summary)
+    print(f"wrote {out}")
+    if args.rerun:
+        record_demonstrations(args.rerun, trajectories)
+        print(f"wrote {args.rerun}")
+    if args.json:
+        print(json.dumps({**summary, "predictability": pred, "expert": args.expert, "out": str(out)}))
+    return 0
+
+
+def cmd_inspect(args: argparse.Namespace) -> int:
+    trajectories = load_dataset(args.path)
+    summary = summarise(trajectories)
+    print(f"{args.path}: valid nirl-mj dataset")
+    print(f"demonstrators {summary['demonstrators']}  speeds {summary['speeds']}  tasks {summary['tasks']}")
+    pred = _summary(trajectories, summary)
+    _, report = map_pretreat(trajectories)
+    print(f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
+          f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)")  # fmt: skip
+    if args.json:
+        print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": report.pairs_changed}))
+    return 0
+
+
+def cmd_teleop(args: argparse.Namespace) -> int:
+    from nirl_mj.experts import teleop  # opens MuJoCo's viewer: only when asked
+
+    out = _check_output(args.out, args.overwrite)
+    env = make_env(_task(args))
+    print(teleop.__doc__.split("\n\n", 2)[2], file=sys.stderr)
+    trajectories = []
+
+    def keep(trajectory) -> None:
+        trajectories.append(trajectory)
+        print(f"episode {len(trajectories)}: {episode_line(trajectory)}")
+
+    try:
+        teleop.teleoperate(env, args.episodes, lambda i: episode_seed(args.seed, i), keep)
+    except KeyboardInterrupt:
+        print("interrupted: saving the finished episodes", file=sys.stderr)
+    if not trajectories:
+        print("no episode kept; nothing written", file=sys.stderr)
+        return 1
+    save_dataset(out, trajectories, overwrite=args.overwrite)
+    print(f"wrote {len(trajectories)} human demonstrations to {out}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    if args.resume:
+        changed = [flag for flag, given in (("--config", args.config), ("--set", args.set),
+                                            ("--episodes", args.episodes)) if given]  # fmt: skip
+        if changed:
+            raise SpecError(f"--resume continues with the run's saved settings; {', '.join(changed)} cannot "
+                            "change them (train a new run with another --out instead)")  # fmt: skip
+        spec, config, saved_demos, seed = saved_settings(args.out)
+        demos = args.demos or saved_demos
+    else:
+        if not args.demos:
+            raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
+        changes = {"episodes": args.episodes} if args.episodes else {}
+        config = LearnerConfig.preset(args.variant, **changes, **_config_overrides(args.config))
+        spec, demos, seed = _task(args), args.demos, args.seed
+    done = RunDir(args.out).iterations_done() if args.resume else 0
+    recording = Recording(_check_output(args.rerun, args.overwrite)) if args.rerun else None
+    with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
+
+        def progress(m) -> None:
+            bar.update()
+            bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
+                            succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
+                            else f"{m.validation_success:.2f}")  # fmt: skip
+            if recording:
+                recording.training([vars(m)])  # per iteration, from the metrics already computed
+
+        try:
+            record = train(args.out, spec, demos, config, seed, args.resume, progress)
+        except BaseException:
+            if recording:
+                recording.abort()
+            raise
+    if recording:
+        print(f"wrote {finish_training(recording, args.out, demos)}")
+    print(f"trained {record['iterations']} iterations ({config.loop.variant} variant); selected policy: "
+          f"iteration {record['selected_iteration']}; run in {args.out}")  # fmt: skip
+    return 0
+
+
+def _config_overrides(assignments: list[str]) -> dict:
+    """``KEY=VALUE`` learner settings (VALUE in TOML syntax; a bare word is a string), type-checked."""
+    out = {}
+    for text in assignments:
+        parsed = parse_assignment(text)
+        if parsed is None:
+            raise SpecError(f"--config {text!r}: expected KEY=VALUE, e.g. reward_source=progress")
+        out[parsed[0]] = parsed[1]
+    try:
+        return checked_changes(out, "--config", exclude=("variant",))
+    except ValueError as exc:
+        raise SpecError(str(exc)) from None
+
+
+def _subject(args: argparse.Namespace) -> Subject:
+    """A run's policy (``--run``) or a reference policy (``--policy``), for ``eval`` and ``render``."""
+    if args.run:
+        return run_subject(args.run, args.which, args.task)
+    demos = getattr(args, "demos", None)
+    return reference_subject(args.policy, args.task, demos, getattr(args, "train_seed", 0))
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    subject = _subject(args)
+    spec = apply_overrides(subject.task, args.set)
+    if args.rerun:
+        _check_output(args.rerun, args.overwrite)
+    seeds = subject.test_seeds(args.seed, args.tests)
+    with _bar(args, args.tests, "test") as bar:
+        metrics, trajectories = evaluate(make_env(spec), subject.policy, seeds, subject.name,
+                                         on_episode=lambda t: bar.update())  # fmt: skip
+    result = {
+        **metrics,
+        "task": spec.name,
+        "seed": args.seed,
+        "policy": args.which if args.run else args.policy,
+    }
+    if subject.run:
+        subject.run.add_evaluation(f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}", result)
+    print(evaluation_line(spec.name, metrics))
+    if args.rerun:
+        from nirl_mj.inspect.recording import record_evaluation
+
+        reward = subject.reward()
+        record_evaluation(
+            args.rerun, subject.name, trajectories, reward, (spec, seeds[0]) if reward else None
+        )
+        print(f"wrote {args.rerun}")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    outputs = [Path(p) for p in (args.out, args.montage, args.paths) if p]
+    if not outputs:
+        raise video.RenderError(
+            "nothing to write: give --out FILE.mp4, --montage FILE.png and/or --paths FILE.png"
+        )
+    for path in outputs:
+        _check_output(path, args.overwrite)
+    video.check_frame(args.camera, args.width, args.height)
+    video.check_backend()
+    if args.episode < 0:
+        raise video.RenderError(f"--episode {args.episode}: expected a test arena index >= 0")
+    subject = _subject(args)
+    spec = apply_overrides(subject.task, args.set)
+    seeds = subject.test_seeds(args.seed, args.episode + max(1, args.arenas if args.paths else 1))[
+        args.episode :
+    ]
+    what = f"{args.run} ({args.which} policy)" if args.run else f"policy {args.policy}"
+    env, frame = make_env(spec), (args.camera, args.width, args.height)
+    print(f"{what} on {spec.name}, arena seed {seeds[0]}, camera {args.camera}", file=sys.stderr)
+    if args.out:
+        clip = video.record_video(env, subject.policy, seeds[0], args.out, *frame, args.fps, args.overlay,
+                                  args.overwrite)  # fmt: skip
+        t = clip.trajectory
+        print(f"wrote {clip.path}: {clip.frames} frames, {clip.duration:.1f} s simulated at {args.fps:g} fps, "
+              f"{t.outcome} after {len(t)} decisions")  # fmt: skip
+    if args.montage:
+        strip = video.snapshot_strip(env, subject.policy, seeds[0], args.montage, args.snapshots, *frame,
+                                     overwrite=args.overwrite)  # fmt: skip
+        print(f"wrote {strip}")
+    if args.paths:
+        print(
+            f"wrote {video.paths_montage(env, subject.policy, seeds, args.paths, *frame, overwrite=args.overwrite)}"
+        )
+    return 0
+
+
+_EXPERIMENTS = {  # command -> (run, Markdown table, --json line)
+    "compare": (compare.run_compare, lambda summary, _: compare.markdown_table(summary), compare.json_line),
+    "sweep": (sweep.run_sweep, sweep.markdown_table, sweep.json_line),
+}
+
+
+def cmd_experiment(args: argparse.Namespace) -> int:
+    """``compare`` and ``sweep``: run (or resume) the experiment with a progress bar over its cells."""
+    run, table, json_line = _EXPERIMENTS[args.command]
+    experiment = load_experiment(args.task, args.quick, args.command)
+    out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
+    execution = Execution(args.executor, args.workers, args.address, args.retries, args.report)
+    bars: list[tqdm] = []  # made once the number of cells is known
+
+    def log(text: str) -> None:
+        tqdm.write(text, file=sys.stderr)
+
+    def start(total: int, done: int) -> None:
+        log(f"{total} cells, {done} already finished in {out}; executor {args.executor}")
+        bars.append(_bar(args, total, "cell", initial=done, desc=experiment.name))
+
+    def done(cell_id: str, result, failure) -> None:
+        bars[0].update()
+        bars[0].set_postfix_str(cell_id if failure is None else f"{cell_id} FAILED")
+
+    try:
+        summary = run(experiment, out, execution, log, start, done)
+    except KeyboardInterrupt:
+        print(f"interrupted: finished cells are kept in {out}/cells; run the same command to resume",
+              file=sys.stderr)  # fmt: skip
+        raise SystemExit(130) from None
+    finally:
+        for bar in bars:
+            bar.close()
+    print(table(summary, experiment))
+    print("wrote " + ", ".join(summary["files"]))
+    for failure in summary["failures"]:
+        print(
+            f"FAILED {failure['id']} ({failure['attempts']} attempt(s)): {failure['error']}", file=sys.stderr
+        )
+    if args.json:
+        print(json_line(summary))
+    return 1 if summary["failures"] else 0
+
+
+def cmd_task(args: argparse.Namespace) -> int:
+    spec = load_task(args.task)
+    print(json.dumps({**spec.to_dict(), "step_budget": spec.step_budget}, indent=2))
+    return 0

@@ -1,0 +1,188 @@
+"""The ``nirl-mj`` argument parser: every command, its options and its choices (from the registries)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from nirl_mj.cli import commands as c
+from nirl_mj.experiments.executors import EXECUTORS
+from nirl_mj.experiments.subjects import REFERENCES
+from nirl_mj.experts import EXPERT_KINDS
+from nirl_mj.experts.policies import POLICIES
+from nirl_mj.learn.config import VARIANTS
+
+
+def _number(kind: Callable, low: float, high: float, accepted: str) -> Callable[[str], float]:
+    """An argparse type: ``kind(text)`` within [low, high], else an error naming what is accepted."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {accepted}, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected {accepted}, got {text}")
+        return value
+
+    return parse
+
+
+_positive_int = _number(int, 1, float("inf"), "a whole number >= 1")
+_probability = _number(float, 0.0, 1.0, "a probability in [0, 1]")
+
+
+def _command(sub, name: str, func: Callable, help: str, *common: str, task: str | None = "navigate"):
+    """A subcommand with its function and shared options: --task (default ``task``; "own": the
+    run's own; None: no task options) with --set; ``common`` from json, quiet, overwrite, rerun=WHAT."""
+    parser = sub.add_parser(name, help=help)
+    parser.set_defaults(func=func)
+    if task is not None:
+        default = None if task == "own" else task
+        helps = "task name under tasks/ or a .toml path" + ("" if default else " (default: the run's own)")
+        parser.add_argument("--task", default=default, help=helps)
+        parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                            help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
+    for option in common:
+        key, _, what = option.partition("=")
+        if key == "json":
+            parser.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
+        elif key == "quiet":
+            parser.add_argument("--quiet", action="store_true", help="no progress bar")
+        elif key == "overwrite":
+            parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
+        elif key == "rerun":
+            parser.add_argument(
+                "--rerun", default=None, metavar="FILE.rrd", help=f"also write a Rerun recording: {what}"
+            )
+    return parser
+
+
+def _experiment_command(sub, name: str, default: str, help: str) -> None:
+    """The options of ``compare`` and ``sweep`` (docs/EXPERIMENTS.md)."""
+    p = _command(sub, name, c.cmd_experiment, help, "json", "quiet", task=None)
+    p.add_argument("--task", default=default, metavar="SPEC",
+                   help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
+    p.add_argument("--quick", action="store_true", help="the spec's [quick] values: a smoke run")
+    p.add_argument("--out", default=None, help="output directory (default: runs/NAME[-quick]); rerunning into "
+                   "it resumes the same experiment, another one is refused")  # fmt: skip
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where cells run: this process, local processes (default), or Ray")  # fmt: skip
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="local processes or local Ray CPUs (default: all cores)")  # fmt: skip
+    p.add_argument("--address", default=None, help="with --executor ray: an existing cluster's address")
+    p.add_argument(
+        "--retries", type=int, default=2, metavar="N", help="further attempts of a failing cell (default: 2)"
+    )
+    p.add_argument("--report", action="store_true", help="run nothing: write the tables from the cells finished so "
+                   "far (a partial report of a long or interrupted experiment; safe while it runs)")  # fmt: skip
+
+
+# fmt: off
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="nirl-mj", description="Neural inverse reinforcement learning for a Robotino in MuJoCo.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    iterations = dict(type=_positive_int, default=None, help="learner iterations (default: the variant's)")
+
+    p = _command(sub, "run", c.cmd_run, "the main job: demonstrations, NIRL, held-out evaluation next to the "
+                 "references, report", "json", "quiet", "overwrite", "rerun=a copy of RUN_DIR/run.rrd (always written)")  # fmt: skip
+    p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
+    p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--variant", choices=VARIANTS, default="default")
+    p.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record")
+    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
+    p.add_argument("--episodes", **iterations)
+    p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="processes for demonstrations, training and evaluation (default: all cores)")  # fmt: skip
+
+    p = _command(sub, "rollout", c.cmd_rollout, "roll out a reference policy on fresh arenas and print each "
+                 "episode's outcome", "json", "quiet")  # fmt: skip
+    p.add_argument("--episodes", type=_positive_int, default=10)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--policy", choices=sorted(POLICIES), default="rule")
+
+    p = _command(sub, "demos", c.cmd_demos, "record expert demonstrations to a dataset file", "json", "quiet",
+                 "overwrite", "rerun=the demonstrations")  # fmt: skip
+    p.add_argument("--episodes", type=_positive_int, default=30)
+    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
+    p.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default="sensor",
+                   help="the expert a noisy expert perturbs")  # fmt: skip
+    p.add_argument("--slip", type=_probability, default=0.1, help="noisy: probability an action slips")
+    p.add_argument(
+        "--random-action", type=_probability, default=0.05, help="noisy: probability of a random action"
+    )
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="dataset path (.npz)")
+    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
+
+    p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and record "
+                 "the episodes", "overwrite")  # fmt: skip
+    p.add_argument("--episodes", type=_positive_int, default=30)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="dataset path (.npz)")
+
+    p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
+                 "rerun=training scalars per iteration, demonstrations with r_theta, reward map")  # fmt: skip
+    p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
+    p.add_argument("--out", required=True, help="run directory")
+    p.add_argument("--variant", choices=VARIANTS, default="default")
+    p.add_argument("--episodes", **iterations)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
+
+    p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
+                 "quiet", "overwrite", "rerun=every test episode (with r_theta and the reward map for --run)",
+                 task="own")  # fmt: skip
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--run", help="run directory")
+    who.add_argument("--policy", choices=REFERENCES, help="a reference policy instead of a run")
+    p.add_argument("--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)")
+    p.add_argument("--train-seed", type=int, default=0, help="with --policy bc: its training seed")
+    p.add_argument("--tests", type=_positive_int, default=100)
+    p.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
+    p.add_argument("--which", default="selected", metavar="selected|last|N",
+                   help="the selected policy, the last one, or the one of iteration N")  # fmt: skip
+
+    p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy offscreen: "
+                 "MP4, PNG montages", "overwrite", task="own")  # fmt: skip
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
+    who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
+    p.add_argument("--seed", type=int, default=0, help="seed of the test arenas (as for eval)")
+    p.add_argument("--episode", type=int, default=0, help="which test arena (0 = eval's first)")
+    p.add_argument("--which", default="selected", help="selected, last or an iteration number")
+    p.add_argument("--out", help="MP4 video of the episode")
+    p.add_argument("--montage", metavar="FILE.png", help="strip of snapshots of the episode (Fig. 8)")
+    p.add_argument("--snapshots", type=_positive_int, default=5, help="frames in --montage")
+    p.add_argument("--paths", metavar="FILE.png", help="whole paths in several test arenas (Fig. 5)")
+    p.add_argument("--arenas", type=_positive_int, default=4, help="arenas in --paths")
+    p.add_argument(
+        "--camera", default="top", help="top (whole arena, default), follow (12 m above the robot) or chase"
+    )
+    p.add_argument("--width", type=_positive_int, default=640, help="pixels (even, <= 1280)")
+    p.add_argument("--height", type=_positive_int, default=480, help="pixels (even, <= 960)")
+    p.add_argument("--fps", type=float, default=10.0,
+                   help="video frames per second of simulated time; plays at real time")  # fmt: skip
+    p.add_argument("--overlay", action=argparse.BooleanOptionalAction, default=True,
+                   help="draw time, step, action and danger levels onto the video")  # fmt: skip
+
+    _experiment_command(sub, "compare", "tasks/table1.toml",
+                        "the paper's Table I protocol: every method, R runs of T tests, next to the paper")  # fmt: skip
+    _experiment_command(
+        sub, "sweep", "tasks/fig6.toml", "Fig. 6: success against obstacles and speed (CSV and line plot)"
+    )
+
+    p = _command(
+        sub, "inspect", c.cmd_inspect, "validate a dataset file and print its summary", "json", task=None
+    )
+    p.add_argument("path")
+    p = _command(
+        sub, "task", c.cmd_task, "validate a task file and print the resolved spec as JSON", task=None
+    )
+    p.add_argument("task", help="task name under tasks/ or a .toml path")
+    return parser
+# fmt: on
