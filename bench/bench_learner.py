@@ -24,10 +24,9 @@ import time
 from pathlib import Path
 
 from nirl_mj.experiments import evaluation as evaluation
-from nirl_mj.learn import train as training
+from nirl_mj.experiments import training
 from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.sim import spec as specs
-from nirl_mj.sim import task as tasks
 
 try:
     from report import markdown_table, write_section
@@ -60,7 +59,7 @@ class _Timed:
 
 def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
     clock = {"env": 0.0, "validation": 0.0, "validation_env": 0.0}
-    make_env, evaluate = tasks.make_env, evaluation.evaluate
+    make_env, evaluate = training.make_env, training.evaluate
 
     def timed_evaluate(*args, **kwargs):
         env_before, t0 = clock["env"], time.perf_counter()
@@ -70,8 +69,9 @@ def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
             clock["validation"] += time.perf_counter() - t0
             clock["validation_env"] += clock["env"] - env_before
 
-    tasks.make_env = lambda *a, **k: _Timed(make_env(*a, **k), clock)
-    evaluation.evaluate = timed_evaluate
+    # training.py's own names: the environment its rollouts use and the evaluation of its validation
+    training.make_env = lambda *a, **k: _Timed(make_env(*a, **k), clock)
+    training.evaluate = timed_evaluate
     try:
         task = specs.load_task("navigate")
         with tempfile.TemporaryDirectory() as tmp:
@@ -81,7 +81,7 @@ def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
             )
             total = time.perf_counter() - t0
     finally:
-        tasks.make_env, evaluation.evaluate = make_env, evaluate
+        training.make_env, training.evaluate = make_env, evaluate
     rollouts = clock["env"] - clock["validation_env"]
     learner = total - rollouts - clock["validation"]
     return {

@@ -84,3 +84,17 @@ def test_a_run_directory_written_before_the_restructure_still_evaluates_the_same
     (run / "eval.json").unlink()
     assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 0
     assert json.loads((run / "eval.json").read_text()) == before
+
+
+def test_a_main_job_directory_of_the_old_layout_is_refused_with_a_clear_error(tmp_path, capsys):
+    out = tmp_path / "main"
+    (out / "nirl").mkdir(parents=True)
+    for file in ("run.json", "policy.npz", "reward.json"):
+        (out / "nirl" / file).write_bytes(
+            (Path(__file__).parent / "data" / "legacy_run_aa67077" / file).read_bytes()
+        )
+    assert main(["run", "--out", str(out), "--resume", "--quiet"]) == 2
+    assert "a main job of an older nirl-mj" in capsys.readouterr().err
+    assert (
+        main(["eval", "--run", str(out / "nirl"), "--tests", "1", "--quiet"]) == 0
+    )  # its run still evaluates

@@ -30,7 +30,7 @@ from pathlib import Path
 from nirl_mj.data.atomic import write_text
 from nirl_mj.data.rundir import RunDir
 from nirl_mj.data.trajectory import load_dataset, save_dataset
-from nirl_mj.experiments.definition import Experiment, MethodSpec
+from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import Execution, RunJob, policy_of, prepare
@@ -112,6 +112,11 @@ def main_job(
     if out.exists() and any(out.iterdir()) and not resume:
         raise FileExistsError(
             f"{out} exists and is not empty; pass --resume to continue it, or choose another --out"
+        )
+    if (out / "nirl" / "run.json").is_file() and not (out / "experiment.json").is_file():
+        raise ExperimentError(
+            f"{out} is a main job of an older nirl-mj (its NIRL run is in nirl/; now runs/NIRL/SEED): it cannot "
+            f"be resumed; run the main job in a new --out (the old run still evaluates: nirl-mj eval --run {out}/nirl)"
         )
     experiment = main_experiment(task, seed, variant, demos, expert, episodes, tests)
     execution = Execution("serial" if workers == 1 else "local", workers, retries=0)
