@@ -9,7 +9,8 @@ from nirl_mj.data.rundir import EVAL_FILE, METRICS_FILE, RunDir, RunError
 def test_a_run_directory_round_trips_its_files(tmp_path):
     run = RunDir(tmp_path / "run")
     assert run.is_empty() and not run.is_run and not run.is_finished
-    run.write_record({"seed": 1})
+    base = {"task": {}, "config": {}, "seed": 1, "demos": "d.npz", "demo_seeds": [], "validation_seeds": []}
+    run.write_record(base)
     run.start_metrics()
     for i in range(3):
         run.append_metrics({"episode": i})
@@ -21,7 +22,7 @@ def test_a_run_directory_round_trips_its_files(tmp_path):
     run.write_policy(w, {k: -v for k, v in w.items()})
     np.testing.assert_array_equal(run.read_policy("last")["W1"], -w["W1"])
     assert not run.is_finished  # the final record has not been written
-    run.write_record({"seed": 1, "train_seeds": []})
+    run.write_record({**base, "train_seeds": []})
     assert run.is_finished and run.has_checkpoint
     run.add_evaluation("a", {"x": 1})
     run.add_evaluation("b", {"x": 2})
@@ -39,9 +40,12 @@ def test_missing_or_corrupt_files_give_clear_errors(tmp_path):
         run.read_policy()
     with pytest.raises(RunError, match="accepted: selected, last"):
         run.read_policy("best")
+    run.file("run.json").write_text('{"seed": 1}')
+    with pytest.raises(RunError, match="lacks task, config, demos"):
+        run.read_record()
     run.file(EVAL_FILE).write_text("{")
     with pytest.raises(RunError, match="eval.json is corrupted"):
         run.read_evaluations()
     run.file("policy.npz").write_bytes(b"not a zip")
-    with pytest.raises(RunError, match="policy.npz is corrupted"):
+    with pytest.raises(RunError, match="policy.npz is corrupted .not an .npz archive"):
         run.read_policy()

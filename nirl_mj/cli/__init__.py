@@ -27,5 +27,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"nirl-mj {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"nirl-mj {args.command}: interrupted; nothing was written", file=sys.stderr)
+        kept = (
+            args.interrupted.format(**vars(args)) if hasattr(args, "interrupted") else "nothing was written"
+        )
+        print(f"nirl-mj {args.command}: interrupted; {kept}", file=sys.stderr)
         return 130

@@ -52,6 +52,8 @@ def _summary(trajectories: list, summary: dict) -> dict | None:
 def _check_output(path: str | Path, overwrite: bool) -> Path:
     """Fails before any work if ``path`` cannot be written or would overwrite results."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path} is a directory; give a file path")
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass --overwrite to replace it, or choose another --out")
     parent = path.parent if str(path.parent) else Path(".")
@@ -63,7 +65,7 @@ def _check_output(path: str | Path, overwrite: bool) -> Path:
 
 
 def _task(args: argparse.Namespace):
-    return apply_overrides(load_task(args.task), args.set)
+    return apply_overrides(load_task(args.task or "navigate"), args.set)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -180,9 +182,10 @@ def cmd_teleop(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    settings = {"--config": args.config, "--set": args.set, "--episodes": args.episodes, "--task": args.task,
+                "--variant": args.variant, "--seed": args.seed}  # fmt: skip
     if args.resume:
-        changed = [flag for flag, given in (("--config", args.config), ("--set", args.set),
-                                            ("--episodes", args.episodes)) if given]  # fmt: skip
+        changed = [flag for flag, given in settings.items() if given not in (None, [])]
         if changed:
             raise SpecError(f"--resume continues with the run's saved settings; {', '.join(changed)} cannot "
                             "change them (train a new run with another --out instead)")  # fmt: skip
@@ -191,9 +194,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     else:
         if not args.demos:
             raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
-        changes = {"episodes": args.episodes} if args.episodes else {}
-        config = LearnerConfig.preset(args.variant, **changes, **_config_overrides(args.config))
-        spec, demos, seed = _task(args), args.demos, args.seed
+        changes = _config_overrides(args.config)
+        if args.episodes:
+            if "episodes" in changes:
+                raise SpecError("--episodes and --config episodes=... both set the iterations: give one")
+            changes["episodes"] = args.episodes
+        config = LearnerConfig.preset(args.variant or "default", **changes)
+        spec, demos, seed = _task(args), args.demos, args.seed or 0
     done = RunDir(args.out).iterations_done() if args.resume else 0
     recording = Recording(_check_output(args.rerun, args.overwrite)) if args.rerun else None
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
@@ -227,6 +234,8 @@ def _config_overrides(assignments: list[str]) -> dict:
         if parsed is None:
             raise SpecError(f"--config {text!r}: expected KEY=VALUE, e.g. reward_source=progress")
         out[parsed[0]] = parsed[1]
+    if "variant" in out:
+        raise SpecError("--config variant=...: the learner preset is chosen with --variant")
     try:
         return checked_changes(out, "--config", exclude=("variant",))
     except ValueError as exc:
@@ -246,6 +255,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     spec = apply_overrides(subject.task, args.set)
     if args.rerun:
         _check_output(args.rerun, args.overwrite)
+    if subject.run:
+        subject.run.read_evaluations()  # a corrupt eval.json fails now, not after the evaluation
     seeds = subject.test_seeds(args.seed, args.tests)
     with _bar(args, args.tests, "test") as bar:
         metrics, trajectories = evaluate(make_env(spec), subject.policy, seeds, subject.name,

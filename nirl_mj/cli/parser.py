@@ -33,14 +33,15 @@ _probability = _number(float, 0.0, 1.0, "a probability in [0, 1]")
 
 
 def _command(sub, name: str, func: Callable, help: str, *common: str, task: str | None = "navigate"):
-    """A subcommand with its function and shared options: --task (default ``task``; "own": the
-    run's own; None: no task options) with --set; ``common`` from json, quiet, overwrite, rerun=WHAT."""
+    """A subcommand with its function and shared options: --task (None when not given: the command
+    uses what ``task`` describes as its default; ``task`` None: no task options) with --set;
+    ``common`` from json, quiet, overwrite, rerun=WHAT."""
     parser = sub.add_parser(name, help=help)
     parser.set_defaults(func=func)
     if task is not None:
-        default = None if task == "own" else task
-        helps = "task name under tasks/ or a .toml path" + ("" if default else " (default: the run's own)")
-        parser.add_argument("--task", default=default, help=helps)
+        parser.add_argument(
+            "--task", default=None, help=f"task name under tasks/ or a .toml path (default: {task})"
+        )
         parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                             help="override a task value, e.g. control.speed=3 (repeatable)")  # fmt: skip
     for option in common:
@@ -86,6 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = _command(sub, "run", c.cmd_run, "the main job: demonstrations, NIRL, held-out evaluation next to the "
                  "references, report", "json", "quiet", "overwrite", "rerun=a copy of RUN_DIR/run.rrd (always written)")  # fmt: skip
+    p.set_defaults(interrupted="finished stages are kept: continue with nirl-mj run --out {out} --resume")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
     p.add_argument("--seed", type=int, default=0)
@@ -124,19 +126,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="dataset path (.npz)")
 
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
-                 "rerun=training scalars per iteration, demonstrations with r_theta, reward map")  # fmt: skip
+                 "rerun=training scalars per iteration, demonstrations with r_theta, reward map",
+                 task="navigate; with --resume the run's own")  # fmt: skip
     p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
     p.add_argument("--out", required=True, help="run directory")
-    p.add_argument("--variant", choices=VARIANTS, default="default")
+    p.set_defaults(interrupted="finished iterations are kept: continue with nirl-mj train --out {out} --resume")
+    p.add_argument("--variant", choices=VARIANTS, default=None, help="learner preset (default: default)")
     p.add_argument("--episodes", **iterations)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=None, help="training seed (default: 0)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
                  "quiet", "overwrite", "rerun=every test episode (with r_theta and the reward map for --run)",
-                 task="own")  # fmt: skip
+                 task="the run's own")  # fmt: skip
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory")
     who.add_argument("--policy", choices=REFERENCES, help="a reference policy instead of a run")
@@ -148,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the selected policy, the last one, or the one of iteration N")  # fmt: skip
 
     p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy offscreen: "
-                 "MP4, PNG montages", "overwrite", task="own")  # fmt: skip
+                 "MP4, PNG montages", "overwrite", task="the run's own")  # fmt: skip
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
     who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")

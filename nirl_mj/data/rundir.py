@@ -32,6 +32,8 @@ from nirl_mj.data.atomic import write_npz, write_text
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
 POLICIES = ("selected", "last")
+RECORD_KEYS = ("task", "config", "seed", "demos", "demo_seeds", "validation_seeds")
+"""What every run record holds from its start."""
 
 
 class RunError(ValueError):
@@ -87,9 +89,13 @@ class RunDir:
                 f"{self.path} is not a nirl-mj run directory (no {RUN_FILE}); train one with `nirl-mj train`"
             )
         try:
-            return json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
+            record = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise RunError(f"{path} is corrupted: {exc}") from None
+        missing = [key for key in RECORD_KEYS if not isinstance(record, dict) or key not in record]
+        if missing:
+            raise RunError(f"{path} is corrupted or not a run record: it lacks {', '.join(missing)}")
+        return record
 
     def write_record(self, record: Mapping[str, Any]) -> None:
         self.path.mkdir(parents=True, exist_ok=True)
@@ -153,6 +159,8 @@ class RunDir:
 
     @staticmethod
     def _read_npz(path: Path, remedy: str) -> dict[str, np.ndarray]:
+        if not zipfile.is_zipfile(path):
+            raise RunError(f"{path} is corrupted (not an .npz archive); {remedy}")
         try:
             with np.load(path, allow_pickle=False) as data:
                 return {k: data[k] for k in data.files}

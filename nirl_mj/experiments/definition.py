@@ -157,7 +157,9 @@ def load_experiment(path: str | Path, quick: bool = False, kind: str | None = No
     data = specs.read_toml(path, "experiment file", ExperimentError)
     experiment = from_dict(data, str(path), path.parent, quick)
     if kind is not None and experiment.kind != kind:
-        raise ExperimentError(f"{given} is a {experiment.kind} experiment: run it with `nirl-mj {experiment.kind}`")
+        raise ExperimentError(
+            f"{given} is a {experiment.kind} experiment: run it with `nirl-mj {experiment.kind}`"
+        )
     return experiment
 
 

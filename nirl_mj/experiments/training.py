@@ -14,6 +14,7 @@ import json
 import os
 import shutil
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import dm_env
@@ -46,7 +47,12 @@ def saved_settings(run_dir: str | os.PathLike) -> tuple[specs.TaskSpec, LearnerC
     """What a resume continues with: the run's task, learner config, demonstrations path and seed."""
     run = RunDir(run_dir)
     record = run.read_record()
-    return specs.from_dict(record["task"], str(run.file(RUN_FILE))), run_config(record), record["demos"], record["seed"]
+    return (
+        specs.from_dict(record["task"], str(run.file(RUN_FILE))),
+        run_config(record),
+        record["demos"],
+        record["seed"],
+    )
 
 
 def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Policy, dict]:
@@ -95,17 +101,19 @@ def train(
         "task": task.to_dict(),
         "config": config.to_dict(),
         "seed": seed,
-        "demos": str(demos_path),
+        "demos": str(Path(demos_path).resolve()),  # a resume may run from another directory
         "demo_seeds": [t.arena_seed for t in demos],
         "validation_seeds": validation_seeds(config, seed),
     }
     if resume:
         saved = run.read_record()
         for key in ("task", "config", "seed"):
-            if saved[key] != json.loads(json.dumps(record[key])):
+            if saved.get(key) != json.loads(json.dumps(record[key])):
                 raise RunError(
                     f"{run} was trained with another {key}; resume with the same options, or train in a new --out"
                 )
+        # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
+        resume = run.has_checkpoint
     elif not run.is_empty():
         raise RunError(
             f"{run} exists and is not empty; pass --resume to continue it, or choose another --out"

@@ -20,6 +20,7 @@ writes it).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,6 +28,7 @@ from typing import Any
 METHODS = ("nirl", "al", "re", "scirl")
 """The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
 REWARD_SOURCES = ("learned", "progress", "constant")
+EXPECTATIONS = ("trajectory", "suffix")
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,14 @@ class LoopConfig:
     def __post_init__(self) -> None:
         _choice("method", self.method, METHODS)
         _choice("reward_source", self.reward_source, REWARD_SOURCES)
+        _choice("reward_features", self.reward_features, ("paper", "extended"))
+        _choice("selection", self.selection, ("validation", "demo_accuracy"))
+        _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
+        _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
+                eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
+                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
+        _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
+                validation_arenas=1, validate_every=1, final_candidates=1)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -83,6 +93,12 @@ class MaxMarginConfig:
     mmp_step_size: float = 0.5  # sigma_1
     mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
 
+    def __post_init__(self) -> None:
+        _choice("matching", self.matching, ("paper", "occupancy"))
+        _bounds(self, future_mix=(0.0, 1.0, "[]"), mmp_lambda=(0.0, None, "[)"), mmp_step_size=(0.0, None, "()"),
+                mmp_step_decay=(0.0, None, "[)"))  # fmt: skip
+        _counts(self, mmp_steps=1)
+
 
 @dataclass(frozen=True)
 class ApprenticeshipConfig:
@@ -92,6 +108,9 @@ class ApprenticeshipConfig:
     # start (the papers' reading; with gamma 0.65 it sees ~3 steps); "suffix": the mean discounted
     # suffix sum over every visited pair (sees every state)
     al_expectations: str = "trajectory"
+
+    def __post_init__(self) -> None:
+        _choice("al_expectations", self.al_expectations, EXPECTATIONS)
 
 
 @dataclass(frozen=True)
@@ -108,6 +127,12 @@ class RelativeEntropyConfig:
     # +-re_step eps_i around 0 every step; "proximal" (soft-thresholding): such theta_i rest at 0
     re_l1_step: str = "proximal"
 
+    def __post_init__(self) -> None:
+        _choice("re_expectations", self.re_expectations, EXPECTATIONS)
+        _choice("re_l1_step", self.re_l1_step, ("proximal", "subgradient"))
+        _bounds(self, re_step=(0.0, None, "()"), re_confidence=(0.0, 1.0, "[)"))
+        _counts(self, re_horizon=1, re_steps=1, re_pool=1)
+
 
 @dataclass(frozen=True)
 class ScirlConfig:
@@ -115,6 +140,10 @@ class ScirlConfig:
 
     scirl_steps: int = 40  # normalised subgradient steps (as the authors' code)
     scirl_step_size: float = 3.0  # step size / (k + 1) at step k (authors: 3 / (k + 1))
+
+    def __post_init__(self) -> None:
+        _bounds(self, scirl_step_size=(0.0, None, "()"))
+        _counts(self, scirl_steps=1)
 
 
 STEP_CONFIGS: dict[str, type] = {
@@ -151,6 +180,29 @@ VARIANTS = tuple(PRESETS)
 def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
     if value not in accepted:
         raise ValueError(f"unknown {name} {value!r}; accepted: {', '.join(accepted)}")
+
+
+def _bounds(config: Any, **fields: tuple[float | None, float | None, str]) -> None:
+    """Each field a finite number within (low, high); ``ends`` "()", "[]", "[)" or "(]" say which
+    ends are open (None: unbounded)."""
+    for name, (low, high, ends) in fields.items():
+        value = getattr(config, name)
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+        ok = ok and (low is None or (value >= low if ends[0] == "[" else value > low))
+        ok = ok and (high is None or (value <= high if ends[1] == "]" else value < high))
+        if not ok:
+            interval = (
+                f"{ends[0]}{'-inf' if low is None else low}, {'inf' if high is None else high}{ends[1]}"
+            )
+            raise ValueError(f"{name} = {value!r}: expected a finite number in {interval}")
+
+
+def _counts(config: Any, **minimums: int) -> None:
+    """Each field a whole number >= its minimum."""
+    for name, low in minimums.items():
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name} = {value!r}: expected a whole number >= {low}")
 
 
 def _owners() -> dict[str, type]:

@@ -19,8 +19,22 @@ from pathlib import Path
 from typing import Any
 
 from nirl_mj.data.assignments import parse_assignment
+from nirl_mj.sim.drive import WHEEL_DISTANCE
 
 TASKS_DIR = Path(__file__).resolve().parents[2] / "tasks"
+
+LIMITS: dict[str, float] = {
+    "arena_side": 1000.0,  # metres per side of the arena
+    "grid_cells": 16_000_000,  # occupancy-grid cells, (width / grid_resolution) * (height / grid_resolution)
+    "obstacles": 1000,  # static + interior walls + moving + listed obstacles
+    "max_tries": 10_000,  # layout attempts
+    "decision_period": 10.0,  # seconds
+    "commands_per_decision": 10_000,  # decision_period / command_period
+    "physics_steps_per_decision": 100_000,  # decision_period / physics_timestep
+    "step_budget": 100_000,  # decisions per episode (explicit or computed)
+}
+"""Bounds on counts and sizes, so that no task file can hang the program or exhaust memory
+(docs/TASKS.md, "Limits"). Every one is far above what the paper's tasks use."""
 
 
 class SpecError(ValueError):
@@ -255,13 +269,7 @@ def _check_object(obj: Any, where: str) -> None:
             what = "[radius]" if n == 1 else "[half_x, half_y]"
             raise SpecError(f"{where}.size = {list(obj.size)}: a {obj.shape} takes {what} > 0")
     elif isinstance(obj, ArenaSpec):
-        w, h = obj.size
-        if w <= 0 or h <= 0:
-            raise SpecError(f"{where}.size = {list(obj.size)}: both sides must be > 0")
-        for name in ("start", "target"):
-            x, y = getattr(obj, name)
-            if not (0 < x < w and 0 < y < h):
-                raise SpecError(f"{where}.{name} = {[x, y]}: must lie inside the arena {list(obj.size)}")
+        _check_arena(obj, where)
         for name in ("obstacle_size", "interior_wall_length", "moving_radius"):
             _check_range_pair(getattr(obj, name), f"{where}.{name}")
         _check_range_pair(obj.moving_speed, f"{where}.moving_speed")
@@ -271,16 +279,67 @@ def _check_object(obj: Any, where: str) -> None:
                 f"{where}.danger7_clearance = {obj.danger7_clearance}: must be < range ({obj.range})"
             )
     elif isinstance(obj, TaskSpec):
-        control = obj.control
-        for name, period, base_name, base in (
-            ("decision_period", control.decision_period, "command_period", control.command_period),
-            ("command_period", control.command_period, "physics_timestep", obj.physics_timestep),
-        ):
-            ratio = period / base
-            if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-                raise SpecError(
-                    f"{where}.control.{name} = {period}: must be a whole multiple of {base_name} ({base})"
-                )
+        _check_timing(obj, where)
+
+
+def _over(value: float, limit: str, where: str, what: str) -> None:
+    if value > LIMITS[limit]:
+        raise SpecError(f"{where} = {value:g}: at most {LIMITS[limit]:g} {what} (docs/TASKS.md, Limits)")
+
+
+def _check_arena(obj: ArenaSpec, where: str) -> None:
+    w, h = obj.size
+    if w <= 0 or h <= 0:
+        raise SpecError(f"{where}.size = {list(obj.size)}: both sides must be > 0")
+    _over(max(w, h), "arena_side", f"{where}.size", "metres per side")
+    _over((w / obj.grid_resolution) * (h / obj.grid_resolution), "grid_cells",
+          f"{where}.size / grid_resolution (cells)", "occupancy-grid cells; raise grid_resolution")  # fmt: skip
+    count = obj.static_obstacles + obj.interior_walls + obj.moving_obstacles + len(obj.obstacles)
+    _over(
+        count, "obstacles", f"{where}: static_obstacles + interior_walls + moving_obstacles + obstacles", ""
+    )
+    _over(obj.max_tries, "max_tries", f"{where}.max_tries", "attempts")
+    for name in ("start", "target"):
+        x, y = getattr(obj, name)
+        if not (0 < x < w and 0 < y < h):
+            raise SpecError(f"{where}.{name} = {[x, y]}: must lie inside the arena {list(obj.size)}")
+    gap = math.dist(obj.start, obj.target)
+    if gap <= obj.target_radius:
+        raise SpecError(f"{where}.start = {list(obj.start)} is within target_radius ({obj.target_radius} m) of "
+                        f"target = {list(obj.target)}: an episode would start at its goal")  # fmt: skip
+    for i, obstacle in enumerate(obj.obstacles):
+        x, y = obstacle.position
+        if not (0 <= x <= w and 0 <= y <= h):
+            raise SpecError(
+                f"{where}.obstacles[{i}].position = {[x, y]}: must lie inside the arena {list(obj.size)}"
+            )
+
+
+def _check_timing(obj: TaskSpec, where: str) -> None:
+    """Periods that nest, bounded work per decision, and turns that fit a decision."""
+    control = obj.control
+    _over(control.decision_period, "decision_period", f"{where}.control.decision_period", "seconds")
+    _over(control.decision_period / control.command_period, "commands_per_decision",
+          f"{where}.control.decision_period / command_period", "commands per decision")  # fmt: skip
+    _over(control.decision_period / obj.physics_timestep, "physics_steps_per_decision",
+          f"{where}.control.decision_period / physics_timestep", "physics steps per decision")  # fmt: skip
+    for name, period, base_name, base in (
+        ("decision_period", control.decision_period, "command_period", control.command_period),
+        ("command_period", control.command_period, "physics_timestep", obj.physics_timestep),
+    ):
+        ratio = period / base
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise SpecError(
+                f"{where}.control.{name} = {period}: must be a whole multiple of {base_name} ({base})"
+            )
+    # The sharpest action turns 60 degrees within one decision (a triangular yaw-rate profile at the
+    # largest yaw acceleration max_accel allows: sim/drive.py action_profile).
+    need = 4.0 * math.radians(60.0) / control.decision_period**2 * WHEEL_DISTANCE
+    if control.max_accel < need:
+        raise SpecError(f"{where}.control.max_accel = {control.max_accel:g}: a 60-degree turn in one decision "
+                        f"({control.decision_period:g} s) needs max_accel >= {need:.3f} m/s^2")  # fmt: skip
+    _over(obj.step_budget, "step_budget", f"{where}: step budget (control.step_budget, or computed from the "
+          "start-target distance, speed, decision_period and budget_factor)", "decisions")  # fmt: skip
 
 
 def from_dict(data: dict[str, Any], source: str = "<dict>") -> TaskSpec:
@@ -311,9 +370,15 @@ def read_toml(path: Path, what: str, error: type[Exception]) -> dict[str, Any]:
     if not path.is_file():
         raise error(f"{what} not found: {path}")
     try:
-        return tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); TOML files are UTF-8"
+        ) from None
+    except OSError as exc:
+        raise error(f"{what} {path} cannot be read: {exc.strerror or exc}") from None
 
 
 def replace(spec: TaskSpec, **sections: dict[str, Any]) -> TaskSpec:

@@ -39,6 +39,10 @@ _DIVERGENCE_WARNINGS = (
 )
 
 
+_UPRIGHT = math.cos(math.radians(45.0))  # tilt beyond 45 degrees: tipped over
+_AIRBORNE = 0.25  # metres the base may rise or sink before it counts as flying
+
+
 class Outcome(enum.IntEnum):
     """How an episode ended; the ``outcome`` observation holds it (RUNNING until the end)."""
 
@@ -46,7 +50,7 @@ class Outcome(enum.IntEnum):
     TARGET = 1
     COLLISION = 2
     TIMEOUT = 3
-    PHYSICS_ERROR = 4
+    PHYSICS_ERROR = 4  # diverged, tipped over or airborne: a failure (``NavigationTask.physics_error``)
 
 
 class NavigationTask(composer.Task):
@@ -166,6 +170,8 @@ class NavigationTask(composer.Task):
         self._ground_id = physics.bind(self._arena.ground_geom).element_id
         base_id = physics.bind(self._robot.base_body).element_id
         self._base_xy = self._data.xpos[base_id, :2]  # a view: current after every step
+        self._base_z = self._data.xpos[base_id, 2:3]  # views too: height and the body z axis' up part
+        self._base_up = self._data.xmat[base_id, 8:9]
         self._origin_id = physics.bind(self._robot.sensor_origin).element_id
 
     def initialize_episode(self, physics, random_state) -> None:
@@ -176,7 +182,9 @@ class NavigationTask(composer.Task):
         self._drive.reset()
         self._steps = 0
         self._outcome = Outcome.RUNNING
+        self.physics_error = ""
         mujoco.mj_forward(self._model, self._data)
+        self._start_z = float(self._base_z[0])
         self._distance = self._target_distance()
         self._sense(physics)
 
@@ -308,7 +316,17 @@ class NavigationTask(composer.Task):
         return True
 
     def _diverged(self) -> bool:
-        return any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS)
+        """MuJoCo diverged, or the robot tipped over or left the floor (which its drive cannot
+        cause in a sound simulation: too coarse a timestep for the speed, e.g. rollers at 5 m/s
+        and 0.02 s); the reason is kept in :attr:`physics_error`."""
+        if any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS):
+            self.physics_error = "MuJoCo reported a diverged state (bad qpos/qvel/qacc)"
+        elif self._base_up[0] < _UPRIGHT:
+            tilt = math.degrees(math.acos(float(np.clip(self._base_up[0], -1.0, 1.0))))
+            self.physics_error = f"the robot tipped over ({tilt:.0f} degrees from upright)"
+        elif abs(self._base_z[0] - self._start_z) > _AIRBORNE:
+            self.physics_error = f"the robot left the floor (base {self._base_z[0] - self._start_z:+.2f} m)"
+        return bool(self.physics_error)
 
     def _in_collision(self) -> bool:
         # Wheels touch the floor only through explicit pairs and nothing else
