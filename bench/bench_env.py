@@ -6,8 +6,11 @@ simulated-time speed-up over real time, and the ratio to a bare
 ``mujoco.mj_step`` loop (one call per physics step) that replays every
 decision from the same start state with the same simulated time on the same
 compiled model. One process, one core. Writes docs/PERFORMANCE.md.
+``--scan`` instead prints what range sensing costs: the task's ``mj_multiRay``
+scan, the robot's MJCF rangefinders read on demand, and a physics step with the
+rangefinders disabled (as the task compiles them) and enabled.
 
-    python bench/bench_env.py [--decisions 2000]
+    python bench/bench_env.py [--decisions 2000] [--scan]
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ import numpy as np
 
 from nirl_mj.experts.policies import rule_policy
 from nirl_mj.sim import spec as specs
+from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.sensing import RangeSensors
 from nirl_mj.sim.task import make_env
 
 try:
@@ -81,6 +86,54 @@ def measure(drive: str, obstacles: int, decisions: int, seed: int = 0) -> dict:
     }
 
 
+def scan_costs(obstacles: int, repeat: int = 3) -> dict:
+    """Microseconds (median of ``repeat``) per range scan and per physics step."""
+
+    def per_call(fn, n: int) -> float:
+        fn()
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        return (time.perf_counter() - t0) / n * 1e6
+
+    spec = specs.replace(specs.load_task("navigate"), arena={"static_obstacles": obstacles})
+    env = make_env(spec, seed=1)
+    env.reset()
+    task, physics = env.task, env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    what = mujoco.mjtState.mjSTATE_INTEGRATION
+    state = np.empty(mujoco.mj_stateSize(model, what))
+    mujoco.mj_getState(model, data, state, what)
+    origin = physics.named.data.site_xpos["robotino/sensor_origin"]
+    target = np.asarray(task.layout.target)
+    walls = np.zeros(model.ngeom, dtype=bool)  # which geoms are walls does not change the cost
+    sensors = RangeSensors(model, walls, spec.robot.rays_per_sensor, spec.sensing.range, BODY_RADIUS)
+    sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+    def steps() -> None:
+        mujoco.mj_setState(model, data, state, what)
+        mujoco.mj_step(model, data, 100)
+
+    def step_with_sensors() -> float:
+        model.opt.disableflags &= ~sensor_bit
+        try:
+            return per_call(steps, 30) / 100
+        finally:
+            model.opt.disableflags |= sensor_bit
+
+    runs: dict[str, list[float]] = {}
+    for _ in range(repeat):
+        for name, fn in (
+            ("multiray_scan", lambda: per_call(lambda: sensors.scan(data, origin, 0.3, target), 3000)),
+            ("rangefinders_read", lambda: per_call(lambda: task.rangefinder_rays(physics), 3000)),
+            ("step_disabled", lambda: per_call(steps, 30) / 100),
+            ("step_enabled", step_with_sensors),
+        ):
+            runs.setdefault(name, []).append(fn())
+    mujoco.mj_setState(model, data, state, what)
+    return {name: float(np.median(v)) for name, v in runs.items()}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--decisions", type=int, default=2000)
@@ -88,7 +141,17 @@ def main() -> None:
         "--repeat", type=int, default=3, help="runs per configuration; the median is reported"
     )
     parser.add_argument("--no-write", action="store_true", help="print only")
+    parser.add_argument("--scan", action="store_true", help="print range-sensing costs only (module doc)")
     args = parser.parse_args()
+    if args.scan:
+        for obstacles in (20, 50):
+            c = scan_costs(obstacles, args.repeat)
+            print(
+                f"{obstacles:3d} obstacles: mj_multiRay scan {c['multiray_scan']:.0f} us, MJCF rangefinders "
+                f"read {c['rangefinders_read']:.0f} us; physics step {c['step_disabled']:.1f} us with them "
+                f"disabled, {c['step_enabled']:.1f} us enabled"
+            )
+        return
     rows = []
     for drive in ("tyre", "rollers", "planar"):
         for obstacles in (20, 50):

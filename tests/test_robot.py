@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -12,6 +13,8 @@ from dm_control import composer, mjcf
 
 from nirl_mj.sim import drive, robot
 from nirl_mj.sim.robot import FIDELITIES, Robotino
+from nirl_mj.sim.sensing import cone_fovy
+from nirl_mj.sim.spec import ArenaSpec
 
 MODELS = Path(__file__).resolve().parents[1] / "models" / "robotino"
 CMD_DT = 0.01
@@ -241,3 +244,63 @@ def test_cache_survives_recompile() -> None:
     bot.set_wheel_speeds(p2, np.array([4.0, 5.0, 6.0]))
     np.testing.assert_allclose(p1.bind(bot.wheel_actuators).ctrl, [1, 2, 3])
     np.testing.assert_allclose(p2.bind(bot.wheel_actuators).ctrl, [4, 5, 6])
+
+
+def _geom_top(m: mujoco.MjModel, d: mujoco.MjData, g: int) -> float:
+    """Highest world z of geom ``g`` (box, ellipsoid, cylinder or capsule), m."""
+    rz, size, kind = d.geom_xmat[g, 6:9], m.geom_size[g], mujoco.mjtGeom(m.geom_type[g])
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        reach = float(np.abs(rz) @ size)
+    elif kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
+        reach = float(np.linalg.norm(rz * size))
+    elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:  # radius size[0], half-length size[1] along z
+        reach = size[1] * abs(rz[2]) + size[0] * math.hypot(rz[0], rz[1])
+    elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        reach = size[1] * abs(rz[2]) + size[0]
+    else:
+        raise AssertionError(f"geom {g}: unexpected type {kind}")
+    return float(d.geom_xpos[g, 2] + reach)
+
+
+@pytest.mark.parametrize("fidelity", FIDELITIES)
+def test_rangefinders_never_see_the_robot(fidelity: str) -> None:
+    """The rangefinder cameras sit on the robot's axis, above every robot geom outside the base
+    body (a rangefinder ignores only its camera's body) and below the lowest obstacle or wall a
+    task allows, so that horizontal rays from there meet the world where the sensor-height
+    rays from the centre do; on a bare floor with the wheels at any angle nothing is hit."""
+    bot, physics = _make(fidelity)
+    cameras = [s.camera for s in bot.rangefinders]
+    assert [s.name for s in bot.rangefinders] == [f"S{i}" for i in range(1, 10)]
+    m, d = physics.model.ptr, physics.data.ptr
+    cam_ids = physics.bind(cameras).element_id
+    base_id = physics.bind(bot.base_body).element_id
+    assert np.all(m.cam_bodyid[cam_ids] == base_id)
+    np.testing.assert_array_equal(m.cam_pos[cam_ids, :2], 0.0)
+    lowest_world = min(
+        f.metadata["low"]
+        for f in dataclasses.fields(ArenaSpec)
+        if f.name in ("obstacle_height", "wall_height")
+    )
+    robot_geoms = physics.bind(bot.mjcf_model.find_all("geom")).element_id
+    others = robot_geoms[m.geom_bodyid[robot_geoms] != base_id]
+    rng = np.random.default_rng(0)
+    hinges = [j for j in bot.mjcf_model.find_all("joint") if j.name.startswith("wheel")]
+    for _ in range(20):
+        bot.set_pose(physics, 0.0, 0.0, rng.uniform(-math.pi, math.pi))
+        if hinges:
+            physics.bind(hinges).qpos = rng.uniform(-math.pi, math.pi, size=len(hinges))
+        mujoco.mj_forward(m, d)
+        top = max(_geom_top(m, d, g) for g in others)
+        cam_z = d.cam_xpos[cam_ids, 2]
+        assert top < cam_z.min() and cam_z.max() < lowest_world
+        np.testing.assert_array_equal(d.sensordata, -1.0)  # no hit: nothing but the floor
+
+
+@pytest.mark.parametrize("k", [1, 5, 8])
+def test_rays_per_sensor_sets_the_rangefinder_cameras(k: int) -> None:
+    bot = Robotino(rays_per_sensor=k)
+    for sensor in bot.rangefinders:
+        assert tuple(sensor.camera.resolution) == (k, 1)
+        assert sensor.camera.fovy == pytest.approx(cone_fovy(k))
+    model = mjcf.Physics.from_mjcf_model(bot.mjcf_model).model
+    assert model.nsensor == 9 and model.nsensordata == 9 * k

@@ -14,6 +14,11 @@ with ``dm_control.mjcf``:
 Contact conventions: robot collision geoms have contype=2, conaffinity=1 and
 group 3; tyres/rollers have contype=conaffinity=0 and touch the floor only
 through the ``<pair>`` elements that :meth:`Robotino.attach_to` adds.
+
+Range sensors: the model carries nine MJCF rangefinders S1..S9, each on a
+camera whose one-row image has ``rays_per_sensor`` pixels across the sensor's
+40-degree cone (see :mod:`nirl_mj.sim.sensing` for why the task casts its own
+rays and computes these only on demand).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 from dm_control import composer, mjcf
 
 from nirl_mj.sim import drive
+from nirl_mj.sim.sensing import cone_fovy
 
 __all__ = ["FIDELITIES", "MODEL_PATH", "Robotino"]
 
@@ -103,8 +109,9 @@ class _Cache:
 class Robotino(composer.Entity):
     """Festo Robotino 3 with three omniwheels (see module docstring)."""
 
-    def _build(self, fidelity: str = "tyre", name: str = "robotino") -> None:
-        """Load robotino.xml and adapt it to ``fidelity`` (tyre, rollers, planar)."""
+    def _build(self, fidelity: str = "tyre", name: str = "robotino", rays_per_sensor: int = 5) -> None:
+        """Load robotino.xml and adapt it to ``fidelity`` (tyre, rollers, planar) and to
+        ``rays_per_sensor`` rays per rangefinder."""
         if fidelity not in FIDELITIES:
             raise ValueError(f"unknown fidelity {fidelity!r}; accepted values: {', '.join(FIDELITIES)}")
         if not MODEL_PATH.is_file():
@@ -119,6 +126,11 @@ class Robotino(composer.Entity):
         self._base = self._mjcf_root.find("body", "base")
         self._sensor_origin = self._mjcf_root.find("site", "sensor_origin")
         self._ir_sites = [self._mjcf_root.find("site", f"S{i}") for i in range(1, 10)]
+        self._rangefinders = [self._mjcf_root.find("sensor", f"S{i}") for i in range(1, 10)]
+        for sensor in self._rangefinders:
+            # A one-row image of rays_per_sensor pixels spanning the 40-degree cone.
+            sensor.camera.resolution = (rays_per_sensor, 1)
+            sensor.camera.fovy = cone_fovy(rays_per_sensor)
         self._collision_geoms = [self._mjcf_root.find("geom", "base_collision")]
         self._wheels = [self._mjcf_root.find("body", f"wheel{i}") for i in (1, 2, 3)]
         self._wheel_actuators = [self._mjcf_root.find("actuator", f"wheel{i}") for i in (1, 2, 3)]
@@ -229,8 +241,14 @@ class Robotino(composer.Entity):
 
     @property
     def ir_sites(self) -> list:
-        """Sites S1..S9 (visual markers of the IR sensors, 40 deg apart)."""
+        """Sites S1..S9 (visual markers of the IR sensors, 40 deg apart; the rangefinders
+        cast from the robot's axis, see :attr:`rangefinders`)."""
         return list(self._ir_sites)
+
+    @property
+    def rangefinders(self) -> list:
+        """Camera rangefinder sensors S1..S9 (``rays_per_sensor`` readings each, see module doc)."""
+        return list(self._rangefinders)
 
     @property
     def wheel_actuators(self) -> list:

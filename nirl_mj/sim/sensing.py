@@ -7,10 +7,36 @@ cast in a single ``mj_multiRay`` call from the robot's centre at sensor height;
 they see only geom group 0 (the world), so the robot never sees itself. A
 reading is the clearance from the robot's outline: hit distance minus the body
 radius.
+
+The robot model also carries the nine sensors as MJCF rangefinders
+(``models/robotino/robotino.xml``: ``<rangefinder camera="S<i>_cone">``, one
+camera per sensor whose image is one row of ``rays_per_sensor`` pixels spanning
+the cone), so the model on its own has them (viewer, ``MjData.sensordata``).
+The task does not read them, by measurement (docs/TASKS.md, "Range sensing"):
+
+- MuJoCo computes them at every physics step: a step takes 84 us with them,
+  11 us without (20 obstacles; ~4x fewer decisions/s); even once per decision
+  they cost ~2-3x the ``mj_multiRay`` scan (a rangefinder casts without a
+  cutoff and without the group filter);
+- a rangefinder reports no geom id (the wall flags) and casts no target ray;
+- a camera is a pinhole, so its rays pass through equally spaced pixel centres
+  and are spaced equally in tangent, not in angle (for 5 rays -16.23, -8.28, 0,
+  8.28, 16.23 degrees, :func:`camera_ray_angles`): no image row gives the
+  equal sub-cones above, so reading them would change today's readings.
+
+So the task compiles them with sensors disabled (physics steps skip them) and
+:class:`Rangefinders` computes them on demand. With the same ray directions
+(``RangeSensors(..., angles=camera_ray_angles(k))``) the two agree ray for ray
+(tests/test_sensing.py). The cameras sit on the robot's vertical axis above the
+wheels and below the lowest obstacle a task allows: a rangefinder ignores only
+its own body and transparent geoms, and from the centre at sensor height the
+rays cross the wheels (other bodies); walls and obstacles are vertical prisms,
+so a horizontal ray meets them at the same distance at either height.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -43,10 +69,33 @@ class Scan:
 
 def ray_angles(rays_per_sensor: int) -> np.ndarray:
     """Ray directions relative to the robot's front, radians, shape (9 * rays_per_sensor,),
-    sensor-major (the rays of S1 first)."""
+    sensor-major (the rays of S1 first), clockwise first within a sensor."""
     k = rays_per_sensor
     offsets = ((np.arange(k) + 0.5) / k - 0.5) * features.SECTOR_WIDTH
     return (features.SENSOR_ANGLES[:, None] + offsets[None, :]).ravel()
+
+
+def camera_ray_angles(rays_per_sensor: int) -> np.ndarray:
+    """Ray directions of the MJCF rangefinder cameras relative to the robot's front, radians,
+    shape (9 * rays_per_sensor,), in :func:`ray_angles`' order: through the centres of
+    ``rays_per_sensor`` equal pixels across an image plane that spans the 40-degree cone."""
+    k = rays_per_sensor
+    pixels = 2.0 * (np.arange(k) + 0.5) / k - 1.0  # pixel centres, -1..1 across the image
+    offsets = np.arctan(pixels * math.tan(features.SECTOR_WIDTH / 2))
+    return (features.SENSOR_ANGLES[:, None] + offsets[None, :]).ravel()
+
+
+def cone_fovy(rays_per_sensor: int) -> float:
+    """Vertical field of view in degrees (MJCF ``fovy``) of a camera with a one-row image of
+    ``rays_per_sensor`` square pixels whose width spans the 40-degree cone."""
+    return math.degrees(2.0 * math.atan(math.tan(features.SECTOR_WIDTH / 2) / rays_per_sensor))
+
+
+def _clearance(dist: np.ndarray, hit: np.ndarray, body_radius: float, sensing_range: float) -> np.ndarray:
+    """Clearance from the robot's outline (metres) of rays from its centre that hit at ``dist``
+    (metres) where ``hit``; ``inf`` for a miss or beyond ``sensing_range``."""
+    rays = np.where(hit, dist - body_radius, np.inf)
+    return np.where(rays < sensing_range, np.maximum(rays, 0.0), np.inf)
 
 
 class RangeSensors:
@@ -54,6 +103,8 @@ class RangeSensors:
 
     ``wall_mask`` (ngeom,) marks the geoms that are walls; ``sensing_range`` is
     measured from the robot's outline of radius ``body_radius`` (metres).
+    ``angles`` (9 * rays_per_sensor,) radians replaces :func:`ray_angles`, e.g. with
+    :func:`camera_ray_angles` to cast the MJCF rangefinders' rays.
     """
 
     def __init__(
@@ -63,13 +114,18 @@ class RangeSensors:
         rays_per_sensor: int,
         sensing_range: float,
         body_radius: float,
+        angles: np.ndarray | None = None,
     ) -> None:
         self._model = model
         self._wall_mask = np.asarray(wall_mask, dtype=bool)
         self._k = rays_per_sensor
         self._range = sensing_range
         self._body_radius = body_radius
-        self._angles = ray_angles(rays_per_sensor)
+        self._angles = ray_angles(rays_per_sensor) if angles is None else np.asarray(angles, dtype=float)
+        if self._angles.shape != (features.N_SENSORS * rays_per_sensor,):
+            raise ValueError(
+                f"angles: shape {self._angles.shape}, expected ({features.N_SENSORS * rays_per_sensor},)"
+            )
         n = self._angles.size + 1  # the last ray points at the target
         self._vec = np.zeros((n, 3))
         self._geomid = np.empty(n, dtype=np.int32)
@@ -100,8 +156,7 @@ class RangeSensors:
             n + 1,
             self._cutoff,
         )
-        rays = np.where(self._geomid[:n] >= 0, self._dist[:n] - self._body_radius, np.inf)
-        rays = np.where(rays < self._range, np.maximum(rays, 0.0), np.inf)
+        rays = _clearance(self._dist[:n], self._geomid[:n] >= 0, self._body_radius, self._range)
         dist = rays.reshape(features.N_SENSORS, self._k)
         nearest = np.argmin(dist, axis=1)
         rows = np.arange(features.N_SENSORS)
@@ -113,3 +168,47 @@ class RangeSensors:
         visible = target_distance - self._body_radius <= self._range and not blocked
         bearing = float(np.arctan2(to_target[1], to_target[0]) - yaw)
         return Scan(ranges, rays, wall, bearing, target_distance, bool(visible))
+
+
+class Rangefinders:
+    """Reads the robot's nine MJCF rangefinders on demand, as clearances like :class:`RangeSensors`.
+
+    ``sensor_ids`` (9,) are the rangefinders S1..S9 of ``model``, each attached to a camera on
+    the robot's vertical axis (so a ray's distance from the camera is its distance from the
+    robot's centre); ``sensing_range`` and ``body_radius`` in metres as for :class:`RangeSensors`.
+    A model may compile them with sensors disabled (the task does, so physics steps skip them):
+    :meth:`read` computes them anyway.
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, sensor_ids: np.ndarray, sensing_range: float, body_radius: float
+    ) -> None:
+        ids = np.asarray(sensor_ids, dtype=int)
+        if ids.shape != (features.N_SENSORS,):
+            raise ValueError(f"sensor_ids: shape {ids.shape}, expected ({features.N_SENSORS},)")
+        if np.any(model.sensor_type[ids] != mujoco.mjtSensor.mjSENS_RANGEFINDER) or np.any(
+            model.sensor_objtype[ids] != mujoco.mjtObj.mjOBJ_CAMERA
+        ):
+            raise ValueError("sensor_ids: every sensor must be a camera-attached rangefinder")
+        cameras = model.sensor_objid[ids]
+        if np.any(model.cam_pos[cameras, :2] != 0.0):
+            raise ValueError("rangefinder cameras must sit on the robot's vertical axis (pos x = y = 0)")
+        self._model = model
+        adr, dim = model.sensor_adr[ids], model.sensor_dim[ids]
+        self._index = np.concatenate([np.arange(a, a + k) for a, k in zip(adr, dim, strict=True)])
+        self._range = sensing_range
+        self._body_radius = body_radius
+
+    def read(self, data: mujoco.MjData) -> np.ndarray:
+        """Clearance of every ray in metres, ``inf`` where nothing is within range, shape
+        (sum of the cameras' pixels,), sensor-major in :func:`camera_ray_angles`' order.
+        Geometry must be current (``mj_kinematics``); writes ``data.sensordata``."""
+        opt = self._model.opt
+        flags = opt.disableflags
+        opt.disableflags = flags & ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+        try:
+            mujoco.mj_sensorPos(self._model, data)
+        finally:
+            opt.disableflags = flags
+        dist = data.sensordata[self._index]
+        return _clearance(dist, dist >= 0.0, self._body_radius, self._range)

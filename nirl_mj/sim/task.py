@@ -29,7 +29,7 @@ from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
 from nirl_mj.sim.robot import Robotino
-from nirl_mj.sim.sensing import RangeSensors, Scan
+from nirl_mj.sim.sensing import Rangefinders, RangeSensors, Scan
 from nirl_mj.sim.spec import TaskSpec, load_task
 
 _DIVERGENCE_WARNINGS = (
@@ -66,11 +66,15 @@ class NavigationTask(composer.Task):
         self._spec = spec
         control = spec.control
         self._arena = NavigationArena(spec.arena)
-        self._robot = Robotino(fidelity=spec.robot.drive)
+        self._robot = Robotino(fidelity=spec.robot.drive, rays_per_sensor=spec.robot.rays_per_sensor)
         self._robot.attach_to(self._arena, self._arena.ground_geom)
         # Composer's base arena asks for noslip iterations; the drive models are
         # tuned without them and they cost about 20 % of the step time.
         self._arena.mjcf_model.option.noslip_iterations = 0
+        # The ranges come from one mj_multiRay per decision (RangeSensors); the robot's
+        # MJCF rangefinders (its only sensors) would cost more than the rest of a physics
+        # step, at every step: compiled disabled, read on demand (rangefinder_rays).
+        self._arena.mjcf_model.option.flag.sensor = "disable"
         self.set_timesteps(control_timestep=control.decision_period, physics_timestep=spec.physics_timestep)
         self._substeps_per_command = round(control.command_period / spec.physics_timestep)
         self._commands_per_decision = round(control.decision_period / control.command_period)
@@ -167,6 +171,12 @@ class NavigationTask(composer.Task):
         )
         ray_gap = features.SECTOR_WIDTH / self._spec.robot.rays_per_sensor
         self._hidden_margin = 0.5 + (self._spec.sensing.range + BODY_RADIUS) * math.sin(ray_gap / 2)
+        self._rangefinders = Rangefinders(
+            model,
+            physics.bind(self._robot.rangefinders).element_id,
+            self._spec.sensing.range,
+            BODY_RADIUS,
+        )
         self._ground_id = physics.bind(self._arena.ground_geom).element_id
         base_id = physics.bind(self._robot.base_body).element_id
         self._base_xy = self._data.xpos[base_id, :2]  # a view: current after every step
@@ -293,6 +303,13 @@ class NavigationTask(composer.Task):
     def last_scan(self) -> Scan | None:
         """The sensor reading behind the latest observation."""
         return self._scan
+
+    def rangefinder_rays(self, physics) -> np.ndarray:
+        """The robot's MJCF rangefinders, computed now: clearance (metres, ``inf`` where
+        nothing is within range) of every ray, shape (9 * rays_per_sensor,), in
+        :func:`~nirl_mj.sim.sensing.camera_ray_angles`' order. Not used by the task (see
+        :mod:`nirl_mj.sim.sensing`); for checks and visualisation."""
+        return self._rangefinders.read(physics.data.ptr)
 
     def _target_distance(self) -> float:
         x, y = self._base_xy
