@@ -48,7 +48,7 @@ def _episode_line(trajectory) -> str:
 
 
 def _cmd_rollout(args: argparse.Namespace) -> int:
-    from nirl_mj.data.trajectory import summarise
+    from nirl_mj.data.outcomes import summarise
     from nirl_mj.experiments.seeds import episode_seed
     from nirl_mj.experts.policies import PolicyAgent
     from nirl_mj.sim.episode import run_episode
@@ -144,7 +144,8 @@ def _open_recording(path: str | None, overwrite: bool):
 
 
 def _cmd_demos(args: argparse.Namespace) -> int:
-    from nirl_mj.data.trajectory import save_dataset, summarise
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.data.outcomes import summarise
     from nirl_mj.experiments.demos import ExpertConfig, collect, default_workers
     from nirl_mj.sim.spec import apply_overrides, load_task
 
@@ -183,7 +184,8 @@ def _cmd_demos(args: argparse.Namespace) -> int:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    from nirl_mj.data.trajectory import load_dataset, summarise
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.data.outcomes import summarise
     from nirl_mj.learn.pretreat import map_pretreat
 
     trajectories = load_dataset(args.path)
@@ -203,7 +205,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _cmd_teleop(args: argparse.Namespace) -> int:
-    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.data.dataset import save_dataset
     from nirl_mj.experiments.seeds import episode_seed
     from nirl_mj.experts.teleop import __doc__ as keys_doc
     from nirl_mj.experts.teleop import teleoperate
@@ -316,7 +318,7 @@ def _iterations_done(run_dir: str) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from nirl_mj.data.trajectory import load_dataset
+    from nirl_mj.data.dataset import load_dataset
     from nirl_mj.experiments.evaluation import evaluate
     from nirl_mj.experiments.seeds import held_out_seeds, seen_seeds
     from nirl_mj.experiments.training import load_policy
@@ -753,7 +755,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
-    from nirl_mj.data.trajectory import DatasetError
+    from nirl_mj.data.dataset import DatasetError
     from nirl_mj.experiments.training import RunError
     from nirl_mj.sim.layout import ArenaGenerationError
     from nirl_mj.sim.spec import SpecError

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from nirl_mj.data.dataset import DatasetError, save_dataset
 from nirl_mj.data.features import N_ACTIONS
-from nirl_mj.data.trajectory import DatasetError, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.training import CHECKPOINT_FILE, RunError, load_checkpoint, load_policy, train
 from nirl_mj.learn.loop import NirlConfig

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
-from nirl_mj.data.trajectory import load_dataset, save_dataset
+from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds, held_out_seeds

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from nirl_mj.data.atomic import write_npz, write_text
-from nirl_mj.data.trajectory import load_dataset
+from nirl_mj.data.dataset import load_dataset
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network
 from nirl_mj.learn.loop import Metrics, Nirl, NirlConfig, greedy_policy
