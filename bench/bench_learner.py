@@ -103,7 +103,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         demos = args.demos
         if demos is None:
-            from nirl_mj.data.trajectory import save_dataset
+            from nirl_mj.data.dataset import save_dataset
             from nirl_mj.experiments.demos import ExpertConfig, collect
 
             demos = Path(tmp) / "demos.npz"

@@ -147,7 +147,7 @@ def main() -> None:
               f"{r['encode']:4.1f} ms  -> {r['fps']:4.1f} frames/s "
               f"(render alone {r['render_fps']:4.1f})")  # fmt: skip
 
-    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.data.dataset import save_dataset
     from nirl_mj.experiments.demos import ExpertConfig, collect
 
     with tempfile.TemporaryDirectory() as tmp_name:

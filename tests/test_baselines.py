@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from nirl_mj.data.dataset import save_dataset
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.data.trajectory import Trajectory, save_dataset
+from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds

@@ -7,7 +7,7 @@ import pytest
 import rerun.chunk
 
 from nirl_mj.cli import main
-from nirl_mj.data.trajectory import load_dataset
+from nirl_mj.data.dataset import load_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert

@@ -7,7 +7,7 @@ it on their own training arenas (35-50 % against 0 %); seed 2's policy had
 stopped colliding but still timed out. The test uses seed 0.
 """
 
-from nirl_mj.data.trajectory import save_dataset
+from nirl_mj.data.dataset import save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds

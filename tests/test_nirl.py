@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from nirl_mj.data.dataset import DatasetError, save_dataset
 from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.data.rundir import CHECKPOINT_FILE, RunDir, RunError
-from nirl_mj.data.trajectory import DatasetError, save_dataset
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.training import load_policy, train
 from nirl_mj.learn.config import LearnerConfig

@@ -8,16 +8,10 @@ import numpy as np
 import pytest
 
 from nirl_mj import make_env
+from nirl_mj.data.dataset import DatasetError, load_dataset, save_dataset
 from nirl_mj.data.features import FEATURE_NAMES
-from nirl_mj.data.trajectory import (
-    DatasetError,
-    Trajectory,
-    TrajectoryRecorder,
-    load_dataset,
-    save_dataset,
-    stack_pairs,
-    summarise,
-)
+from nirl_mj.data.outcomes import summarise
+from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder, stack_pairs
 from nirl_mj.sim import spec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -465,3 +459,20 @@ def test_recorder_misuse():
         rec.step(6, obs)
     with pytest.raises(ValueError, match="decision_period"):
         TrajectoryRecorder(0.0)
+
+
+def test_one_outcome_rate_function_for_summaries_and_evaluations(trajs):
+    from nirl_mj.data.outcomes import metrics_of, outcome_rates
+
+    rates = outcome_rates(["target", "target", "collision", "timeout", "target"])
+    assert rates == {
+        "success_rate": 0.6,
+        "collision_rate": 0.2,
+        "timeout_rate": 0.2,
+        "physics_error_rate": 0.0,
+    }
+    assert outcome_rates([]) == dict.fromkeys(rates, 0.0)
+    expected = outcome_rates(t.outcome for t in trajs)
+    assert {k: summarise(trajs)[k] for k in expected} == expected
+    metrics = metrics_of(trajs)
+    assert {k: metrics[k] for k in expected} == expected and metrics["tests"] == 4

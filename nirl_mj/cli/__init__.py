@@ -6,8 +6,8 @@ from __future__ import annotations
 import sys
 
 from nirl_mj.cli.parser import build_parser
+from nirl_mj.data.dataset import DatasetError
 from nirl_mj.data.rundir import RunError
-from nirl_mj.data.trajectory import DatasetError
 from nirl_mj.sim.layout import ArenaGenerationError
 from nirl_mj.sim.spec import SpecError
 

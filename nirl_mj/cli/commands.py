@@ -11,8 +11,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from nirl_mj.data.assignments import parse_assignment
+from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.data.trajectory import load_dataset, save_dataset, summarise
 from nirl_mj.experiments import compare, sweep
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect

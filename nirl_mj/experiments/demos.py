@@ -17,7 +17,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from nirl_mj.data.trajectory import Trajectory, load_dataset, save_dataset
+from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.executors import Cell, Executor, Failure
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import make_expert

@@ -28,8 +28,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
+from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.data.trajectory import load_dataset, save_dataset
 from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import Cell

@@ -61,7 +61,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
 
 def ensure_demos(out: Path, experiment: Experiment, workers: int, log: Callable[[str], None]) -> Path:
     """OUT/demos.npz: ``experiment.demos`` episodes by its expert on its training task (once)."""
-    from nirl_mj.data.trajectory import save_dataset
+    from nirl_mj.data.dataset import save_dataset
     from nirl_mj.experiments.demos import ExpertConfig, collect
 
     path = out / "demos.npz"
@@ -125,7 +125,7 @@ class RunJob:
 
 def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[str, int], RunJob]:
     """Every (method, run) of the experiment, by (method name, run index)."""
-    from nirl_mj.data.trajectory import load_dataset
+    from nirl_mj.data.dataset import load_dataset
 
     demo_seeds = {t.arena_seed for t in load_dataset(demos_path)}
     jobs = {}
@@ -177,7 +177,7 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
             )
         return policy
     if kind == "bc":
-        from nirl_mj.data.trajectory import load_dataset
+        from nirl_mj.data.dataset import load_dataset
         from nirl_mj.learn.bc import behaviour_cloning
 
         return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed)

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import RUN_FILE, RunDir
-from nirl_mj.data.trajectory import load_dataset
 from nirl_mj.experiments.seeds import held_out_seeds, seen_seeds
 from nirl_mj.experiments.training import load_policy
 from nirl_mj.experts.policies import POLICIES

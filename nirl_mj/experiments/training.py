@@ -20,8 +20,9 @@ from typing import Any
 import dm_env
 import numpy as np
 
+from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
-from nirl_mj.data.trajectory import Trajectory, load_dataset
+from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network

@@ -27,6 +27,7 @@ import os
 import queue
 import sys
 from collections.abc import Callable
+from typing import Any
 
 import dm_env
 
@@ -105,6 +106,33 @@ def display_available() -> bool:
     )
 
 
+class _ViewerAgent:
+    """The human at the viewer as an :class:`~nirl_mj.sim.episode.Agent`: waits for the next
+    key while keeping the window live; a command key or a closed window gives no action,
+    which ends the episode (``command`` tells which)."""
+
+    kind = KeyboardTeleop.kind
+
+    def __init__(self, keys: KeyboardTeleop, viewer: Any) -> None:
+        self.keys, self.viewer = keys, viewer
+        self.command: Command | None = None
+
+    def reset(self, env: dm_env.Environment, timestep: dm_env.TimeStep) -> None:
+        self.keys.reset(env, timestep)
+        self.command = None
+
+    def act(self, timestep: dm_env.TimeStep) -> int | None:
+        while self.viewer.is_running():
+            item = self.keys.next(timeout=0.05)
+            if isinstance(item, Command):
+                self.command = item
+                return None
+            if item is not None:
+                return item
+            self.viewer.sync()
+        return None
+
+
 def teleoperate(
     env: dm_env.Environment,
     episodes: int,
@@ -124,41 +152,24 @@ def teleoperate(
         )
     import mujoco.viewer
 
-    from nirl_mj.data.trajectory import TrajectoryRecorder
-    from nirl_mj.sim.task import Outcome
+    from nirl_mj.sim.episode import EpisodeAbandoned, run_episode
 
-    keys = KeyboardTeleop()
-    task = env.task
-    recorder = TrajectoryRecorder(task.spec.control.decision_period)
     physics = env.physics
     kept = 0
+    keys = KeyboardTeleop()
     with mujoco.viewer.launch_passive(
         physics.model.ptr, physics.data.ptr, key_callback=keys.on_key
     ) as viewer:
+        agent = _ViewerAgent(keys, viewer)
         for i in range(episodes):
-            seed = seed_of(i)
-            env.random_state.seed(seed)
-            timestep = env.reset()
-            keys.reset(env, timestep)
-            recorder.start(timestep.observation)
-            viewer.sync()
-            command = None
-            while viewer.is_running() and not timestep.last():
-                item = keys.next(timeout=0.05)
-                if isinstance(item, Command):
-                    command = item
-                    break
-                if item is not None:
-                    timestep = env.step(item)
-                    recorder.step(item, timestep.observation)
-                viewer.sync()
+            try:
+                trajectory = run_episode(env, agent, seed_of(i), lambda *_: viewer.sync())
+            except EpisodeAbandoned as ended:
+                # Enter keeps the episode so far (as if its budget ran out), Backspace drops it.
+                trajectory = ended.trajectory if agent.command is Command.KEEP else None
             if not viewer.is_running():
                 break
-            if command is Command.DISCARD or len(recorder) == 0:
-                continue
-            outcome = Outcome(int(timestep.observation["outcome"]))
-            if outcome == Outcome.RUNNING:  # ended by Enter: as if the budget ran out
-                outcome = Outcome.TIMEOUT
-            on_trajectory(recorder.finish(outcome, seed, task.spec, task.spec.control.speed, keys.kind))
-            kept += 1
+            if trajectory is not None and len(trajectory):
+                on_trajectory(trajectory)
+                kept += 1
     return kept

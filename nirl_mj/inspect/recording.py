@@ -22,7 +22,7 @@ docs/INSPECT.md lists everything, with the blueprint):
 
 Training scalars are under ``training/<name>`` on the ``episode`` timeline
 (one row per NIRL iteration); the recovered-reward map under ``reward_map/``.
-:class:`Recording` writes a file atomically (``PATH.tmp`` while open).
+:class:`Recording` writes a file atomically (:class:`nirl_mj.data.atomic.AtomicFile`).
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from nirl_mj.data.atomic import AtomicFile
 from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.sim.drive import BODY_RADIUS
@@ -376,16 +377,20 @@ def default_blueprint(
     return rrb.Blueprint(rrb.Horizontal(*columns), collapse_panels=True)
 
 
-class Recording:
-    """A ``.rrd`` file written atomically: data goes to ``PATH.tmp`` and :meth:`close` renames it
-    to ``path`` (after sending the default blueprint); :meth:`abort`, or an exception inside a
-    ``with`` block, deletes it. ``rec`` is the open :class:`rerun.RecordingStream`."""
+class Recording(AtomicFile):
+    """A ``.rrd`` file written atomically: data goes to a temporary file next to ``path`` and
+    :meth:`close` moves it to ``path`` (after sending the default blueprint); :meth:`abort`, or
+    an exception inside a ``with`` block, deletes it. ``rec`` is the open
+    :class:`rerun.RecordingStream`."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        self.path = Path(path)
-        self._tmp = self.path.with_name(self.path.name + ".tmp")
-        self.rec = rr.RecordingStream("nirl-mj")
-        self.rec.save(self._tmp)
+        super().__init__(path)
+        try:
+            self.rec = rr.RecordingStream("nirl-mj")
+            self.rec.save(self.tmp)
+        except BaseException:
+            super().discard()
+            raise
         self.episodes: list[str] = []  # entity paths of logged episodes, in order
         self.logged_iterations: set[int] = set()  # ``episode`` values of logged metrics rows
         self.has_reward_map = False
@@ -410,33 +415,27 @@ class Recording:
         log_reward_map(self.rec, grid, reward, f"arena seed {arena_seed}")
         self.has_reward_map = True
 
-    def close(self) -> Path:
-        """Sends the blueprint, flushes and renames the file into place; returns its path."""
+    def commit(self) -> Path:
+        """Sends the blueprint, flushes and moves the file into place; returns its path."""
         try:
             tabs = _first_of_each_group(self.episodes)
             self.rec.send_blueprint(
                 default_blueprint(tabs, self.has_reward_map, bool(self.logged_iterations)), make_active=True
             )
             self.rec.flush()
-            self.rec.disconnect()
-            os.replace(self._tmp, self.path)
-        finally:
-            self._tmp.unlink(missing_ok=True)
-        return self.path
+        except BaseException:
+            self.discard()
+            raise
+        self.rec.disconnect()
+        return super().commit()
 
-    def abort(self) -> None:
+    def discard(self) -> None:
         """Stops writing and deletes the partial file."""
         self.rec.disconnect()
-        self._tmp.unlink(missing_ok=True)
+        super().discard()
 
-    def __enter__(self) -> Recording:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
+    close = commit
+    abort = discard
 
 
 def _first_of_each_group(episodes: Sequence[str], limit: int = 8) -> list[str]:
@@ -455,8 +454,8 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     rows not logged yet (iterations before a resume), the demonstrations of the dataset ``demos``
     with r_theta of the run's selected reward (``reward.json``), and the reward map in the first
     demonstration's arena. Returns the recording's path."""
+    from nirl_mj.data.dataset import load_dataset
     from nirl_mj.data.rundir import REWARD_FILE, RUN_FILE, RunDir
-    from nirl_mj.data.trajectory import load_dataset
     from nirl_mj.learn.reward import RewardModel
 
     run = RunDir(run_dir)
@@ -481,14 +480,9 @@ def copy_recording(source: str | os.PathLike, target: str | os.PathLike) -> Path
     """Copies the recording ``source`` to ``target`` atomically (a temporary file, then a rename)."""
     import shutil
 
-    target = Path(target)
-    tmp = target.with_name(target.name + ".tmp")
-    try:
-        shutil.copyfile(source, tmp)
-        os.replace(tmp, target)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return target
+    with AtomicFile(target) as out:
+        shutil.copyfile(source, out.tmp)
+    return out.path
 
 
 def record_demonstrations(

@@ -40,7 +40,6 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 
-import secrets  # noqa: E402
 from collections.abc import Callable, Sequence  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -50,9 +49,12 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image, ImageDraw, ImageFont  # noqa: E402
 
+from nirl_mj.data.atomic import AtomicFile, refuse_existing  # noqa: E402
 from nirl_mj.data.features import ACTION_NAMES, FEATURE_SENSORS  # noqa: E402
-from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder  # noqa: E402
+from nirl_mj.data.trajectory import Trajectory  # noqa: E402
+from nirl_mj.experts.policies import PolicyAgent  # noqa: E402
 from nirl_mj.inspect.recording import DANGER_COLOURS  # noqa: E402
+from nirl_mj.sim.episode import run_episode  # noqa: E402
 from nirl_mj.sim.spec import TaskSpec, load_task  # noqa: E402
 
 CAMERAS = ("top", "follow", "chase")
@@ -76,6 +78,7 @@ _MAX_TRAIL = 1500  # path segments drawn into a scene at most (decimated beyond)
 # Path width and marker per camera: thick enough to see at each camera's scale.
 _TRAIL_RADIUS = {"top": 0.3, "follow": 0.06, "chase": 0.04}
 _CHASE = {"distance": 4.0, "elevation": -22.0, "ahead": 1.0, "height": 0.2}  # metres, degrees
+_EXISTS = "exists; pass --overwrite (overwrite=True) to replace it, or choose another"
 
 Policy = Callable[[np.ndarray], int]
 
@@ -264,34 +267,6 @@ def _label(frame: np.ndarray, text: str) -> np.ndarray:
 # -- episodes --------------------------------------------------------------------------
 
 
-def _ready_env(task: str | TaskSpec | Any) -> Any:
-    """An environment for ``task`` (a name, path or TaskSpec; an environment is re-used), reset
-    once: composer compiles the physics at the first reset, and cameras must bind to that one."""
-    from nirl_mj.sim.task import make_env
-
-    env = task if hasattr(task, "physics") else make_env(load_task(task))
-    env.reset()
-    return env
-
-
-def _temporary(out: Path, suffix: str) -> Path:
-    """An empty temporary file next to ``out`` (same file system: the final rename is atomic)."""
-    parent = out.parent if str(out.parent) else Path(".")
-    tmp = parent / f".{out.name}.{secrets.token_hex(4)}.tmp{suffix}"
-    try:
-        open(tmp, "xb").close()  # not mkstemp: its 0600 mode would survive the rename
-    except OSError as exc:
-        raise OSError(f"cannot write {out}: {exc.strerror or exc}") from None
-    return tmp
-
-
-def _refuse_existing(out: Path, overwrite: bool) -> None:
-    if out.exists() and not overwrite:
-        raise FileExistsError(
-            f"{out} exists; pass --overwrite (overwrite=True) to replace it, or choose another"
-        )
-
-
 def record_video(
     task: str | TaskSpec | Any,
     policy: Policy,
@@ -320,33 +295,31 @@ def record_video(
         raise RenderError(
             f"fps {fps:g}: must be > 0 and at most {1.0 / period:g} (one frame per command period)"
         )
-    _refuse_existing(out, overwrite)
-    view = View(env, camera, width, height)
-    tmp = _temporary(out, ".mp4")
-    writer = None
-    try:
+    # ffmpeg picks the container by the file name: the temporary file ends in .mp4 too.
+    with AtomicFile(out, ".mp4", overwrite, _EXISTS) as target:
+        view = View(env, camera, width, height)
         writer = imageio.get_writer(
-            tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=8, pixelformat="yuv420p",
-            macro_block_size=2, ffmpeg_log_level="error",
+            target.tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=8,
+            pixelformat="yuv420p", macro_block_size=2, ffmpeg_log_level="error",
         )  # fmt: skip
-        episode = _VideoEpisode(env, view, writer, fps, overlay)
-        trajectory = episode.run(policy, seed)
-        writer.close()
-        writer = None
-        _refuse_existing(out, overwrite)  # it may have appeared meanwhile
-        os.replace(tmp, out)
-    finally:
-        if writer is not None:
+        try:
+            episode = _VideoEpisode(env, view, writer, fps, overlay, policy)
+            trajectory = episode.run(seed)
+        finally:
             writer.close()
-        tmp.unlink(missing_ok=True)
     return VideoResult(out, episode.frames, episode.end_time, fps, trajectory)
 
 
 class _VideoEpisode:
-    """One episode with frames captured at multiples of 1/fps seconds of simulated time."""
+    """One episode of ``policy`` with frames captured at multiples of 1/fps seconds of simulated
+    time: the agent of :func:`run_episode` (it notes each action for the overlay) and its step hook;
+    within a decision, frames come through the task's ``command_hook``."""
 
-    def __init__(self, env: Any, view: View, writer: Any, fps: float, overlay: bool) -> None:
+    kind = "policy"
+
+    def __init__(self, env: Any, view: View, writer: Any, fps: float, overlay: bool, policy: Policy) -> None:
         self.env, self.view, self.writer, self.fps, self.overlay = env, view, writer, fps, overlay
+        self.policy = policy
         self.frames = 0
         self.end_time = 0.0
         self._last_time = -1.0
@@ -354,39 +327,38 @@ class _VideoEpisode:
         self._action: int | None = None
         self._phi: np.ndarray | None = None
         self._outcome = ""
+        self._trail: list[np.ndarray] = []
 
-    def run(self, policy: Policy, seed: int) -> Trajectory:
-        from nirl_mj.sim.task import Outcome
-
-        env = self.env
-        task = env.task
-        env.random_state.seed(seed)
-        timestep = env.reset()
-        recorder = TrajectoryRecorder(task.spec.control.decision_period)
-        recorder.start(timestep.observation)
-        trail = [timestep.observation["pose"][:2].copy()]
-        self._phi = timestep.observation["features"]
-        self._capture(force=True)
-        task.command_hook = lambda physics: self._capture()
+    def run(self, seed: int) -> Trajectory:
+        """Runs and captures the episode in the arena of ``seed``; returns its trajectory."""
         try:
-            while not timestep.last():
-                self._action = int(policy(timestep.observation["features"]))
-                timestep = env.step(self._action)
-                recorder.step(self._action, timestep.observation)
-                self._step += 1
-                trail.append(timestep.observation["pose"][:2].copy())
-                self.view.trail = np.asarray(trail)
-                if not timestep.last():
-                    self._phi = timestep.observation["features"]
-                    self._capture()
+            trajectory = run_episode(self.env, self, seed, self._on_step)
         finally:
-            task.command_hook = None
-        self._outcome = Outcome(int(timestep.observation["outcome"])).name.lower()
+            self.env.task.command_hook = None
+        self._outcome = trajectory.outcome
         self._action = None
+        self._capture(force=True)  # the final state, with the outcome
+        self.end_time = float(self.env.physics.data.time)
+        return trajectory
+
+    def reset(self, env: Any, timestep: Any) -> None:
+        pass
+
+    def act(self, timestep: Any) -> int:
+        self._action = int(self.policy(timestep.observation["features"]))
+        return self._action
+
+    def _on_step(self, step: int, timestep: Any, action: int | None) -> None:
+        self._trail.append(timestep.observation["pose"][:2].copy())
         self._phi = timestep.observation["features"]
-        self._capture(force=True)
-        self.end_time = float(env.physics.data.time)
-        return recorder.finish(self._outcome, seed, task.spec, task.spec.control.speed, "policy")
+        if step == 0:
+            self._capture(force=True)
+            self.env.task.command_hook = lambda physics: self._capture()
+            return
+        self._step = step
+        self.view.trail = np.asarray(self._trail)
+        if not timestep.last():
+            self._capture()
 
     def _capture(self, force: bool = False) -> None:
         now = float(self.env.physics.data.time)
@@ -402,40 +374,19 @@ class _VideoEpisode:
         self._last_time = now
 
 
-def _run(
-    env: Any, policy: Policy, seed: int, on_state: Callable[[int, Any], None] | None = None
-) -> Trajectory:
-    """One episode (like ``rollout.run_episode``), calling ``on_state(decision, timestep)`` at
-    every state, the reset one included."""
-    from nirl_mj.sim.task import Outcome
+def _ready_env(task: str | TaskSpec | Any) -> Any:
+    """An environment for ``task`` (a name, path or TaskSpec; an environment is re-used), reset
+    once: composer compiles the physics at the first reset, and cameras must bind to that one."""
+    from nirl_mj.sim.task import make_env
 
-    task = env.task
-    env.random_state.seed(seed)
-    timestep = env.reset()
-    recorder = TrajectoryRecorder(task.spec.control.decision_period)
-    recorder.start(timestep.observation)
-    step = 0
-    if on_state:
-        on_state(step, timestep)
-    while not timestep.last():
-        action = int(policy(timestep.observation["features"]))
-        timestep = env.step(action)
-        recorder.step(action, timestep.observation)
-        step += 1
-        if on_state:
-            on_state(step, timestep)
-    outcome = Outcome(int(timestep.observation["outcome"])).name.lower()
-    return recorder.finish(outcome, seed, task.spec, task.spec.control.speed, "policy")
+    env = task if hasattr(task, "physics") else make_env(load_task(task))
+    env.reset()
+    return env
 
 
 def _save_png(image: np.ndarray, out: Path, overwrite: bool) -> Path:
-    _refuse_existing(out, overwrite)
-    tmp = _temporary(out, ".png")
-    try:
-        Image.fromarray(image).save(tmp, format="PNG")
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with AtomicFile(out, ".png", overwrite, _EXISTS) as target:
+        Image.fromarray(image).save(target.tmp, format="PNG")
     return out
 
 
@@ -483,15 +434,16 @@ def snapshot_strip(
     if snapshots < 1:
         raise RenderError(f"snapshots must be >= 1, got {snapshots}")
     out = Path(out_png)
-    _refuse_existing(out, overwrite)
+    refuse_existing(out, overwrite, _EXISTS)
     env = _ready_env(task)
-    length = len(_run(env, policy, seed))
+    agent = PolicyAgent(policy, "policy")
+    length = len(run_episode(env, agent, seed))
     wanted = sorted(set(np.linspace(0, length, snapshots).round().astype(int).tolist()))
     view = View(env, camera, width, height)
     trail: list[np.ndarray] = []
     images: list[np.ndarray] = []
 
-    def on_state(step: int, timestep: Any) -> None:
+    def on_step(step: int, timestep: Any, action: int | None) -> None:
         trail.append(timestep.observation["pose"][:2].copy())
         view.trail = np.asarray(trail)
         if step in wanted:
@@ -502,7 +454,7 @@ def snapshot_strip(
                 text += f": {Outcome(int(timestep.observation['outcome'])).name.lower()}"
             images.append(_label(view.render(), text))
 
-    _run(env, policy, seed, on_state)
+    run_episode(env, agent, seed, on_step)
     return _save_png(_tile(images, len(images)), out, overwrite)
 
 
@@ -525,12 +477,13 @@ def paths_montage(
     if not seeds:
         raise RenderError("paths_montage needs at least one arena seed")
     out = Path(out_png)
-    _refuse_existing(out, overwrite)
+    refuse_existing(out, overwrite, _EXISTS)
     env = _ready_env(task)
     view = View(env, camera, width, height)
+    agent = PolicyAgent(policy, "policy")
     images = []
     for k, seed in enumerate(seeds):
-        trajectory = _run(env, policy, seed)
+        trajectory = run_episode(env, agent, seed)
         view.trail = trajectory.poses[:-1, :2]
         view.trail_rgba = _OUTCOME_RGBA[trajectory.outcome]
         text = f"arena {k}: {trajectory.outcome}, {len(trajectory)} steps"

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from nirl_mj.data.outcomes import outcome_rates
 from nirl_mj.data.trajectory import Trajectory, stack_pairs
 from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.config import LearnerConfig
@@ -289,7 +290,7 @@ class IrlLoop:
         self.scores.append(
             demo_acc if c.selection == "demo_accuracy" else (validation if validation is not None else -1.0)
         )
-        outcomes = [t.outcome for t in trajectories]
+        rates = outcome_rates(t.outcome for t in trajectories)
         metrics = Metrics(
             episode=self.iteration,
             margin=float(margin),
@@ -298,9 +299,9 @@ class IrlLoop:
             dw2=float(np.abs(after["W2"] - before["W2"]).sum()),
             demo_accuracy=demo_acc,
             demo_balanced_accuracy=balanced_accuracy(self.demo_actions, greedy),
-            success_rate=outcomes.count("target") / len(outcomes),
-            collision_rate=outcomes.count("collision") / len(outcomes),
-            timeout_rate=outcomes.count("timeout") / len(outcomes),
+            success_rate=rates["success_rate"],
+            collision_rate=rates["collision_rate"],
+            timeout_rate=rates["timeout_rate"],
             reward_spread=float(self._spread),
             clipped_share=float(self._clipped),
             policy_entropy=float(entropy),

@@ -35,7 +35,14 @@ after every decision with the action that led to it; ``env.physics`` shows the s
 
 
 class EpisodeAbandoned(Exception):
-    """An agent returned no action: the episode ends without a trajectory (teleoperation's discard)."""
+    """An agent returned no action: the episode ends early (teleoperation's Enter, Backspace or
+    a closed window). ``trajectory`` holds the decisions made so far, with the outcome the
+    state had or, still running, ``"timeout"`` (as if the step budget ran out); the agent's
+    owner decides whether to keep it."""
+
+    def __init__(self, message: str, trajectory: Trajectory) -> None:
+        super().__init__(message)
+        self.trajectory = trajectory
 
 
 def run_episode(
@@ -43,7 +50,8 @@ def run_episode(
 ) -> Trajectory:
     """Runs ``agent`` for one episode in the arena of ``seed`` and returns what it did.
 
-    Raises :class:`EpisodeAbandoned` if the agent returns None instead of an action."""
+    Raises :class:`EpisodeAbandoned` (with the episode so far) if the agent returns None
+    instead of an action."""
     spec = env.task.spec
     env.random_state.seed(seed)
     timestep = env.reset()
@@ -55,10 +63,16 @@ def run_episode(
     while not timestep.last():
         action = agent.act(timestep)
         if action is None:
-            raise EpisodeAbandoned(f"{agent.kind} ended the episode in arena {seed}")
+            so_far = recorder.finish(_outcome(timestep), seed, spec, spec.control.speed, agent.kind)
+            raise EpisodeAbandoned(f"{agent.kind} ended the episode in arena {seed}", so_far)
         timestep = env.step(action)
         recorder.step(action, timestep.observation)
         if on_step:
             on_step(len(recorder), timestep, action)
-    outcome = Outcome(int(timestep.observation["outcome"])).name.lower()
-    return recorder.finish(outcome, seed, spec, spec.control.speed, agent.kind)
+    return recorder.finish(_outcome(timestep), seed, spec, spec.control.speed, agent.kind)
+
+
+def _outcome(timestep: dm_env.TimeStep) -> Outcome:
+    """How the episode stands; still running counts as a timeout (an episode cut short)."""
+    outcome = Outcome(int(timestep.observation["outcome"]))
+    return Outcome.TIMEOUT if outcome == Outcome.RUNNING else outcome

@@ -1,0 +1,86 @@
+"""How episodes ended: outcome rates, evaluation metrics and dataset summaries.
+
+:func:`outcome_rates` is the one place rates are computed from outcomes; the
+learner's per-iteration metrics, :func:`metrics_of` (an evaluation) and
+:func:`summarise` (``nirl-mj inspect``/``rollout``) all use it.
+
+SPL (success weighted by path length) = (1/N) sum_i S_i L_i / max(L_i, P_i),
+with P_i the path driven and L_i the straight-line distance from start to the
+target's rim: a lower bound of the shortest path, so this SPL errs low.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from nirl_mj.data.features import ACTION_NAMES, N_ACTIONS
+from nirl_mj.data.trajectory import Trajectory, path_length, task_json
+
+RATE_KEYS = {
+    "target": "success_rate",
+    "collision": "collision_rate",
+    "timeout": "timeout_rate",
+    "physics_error": "physics_error_rate",
+}
+"""Outcome (:data:`nirl_mj.data.trajectory.OUTCOMES`) -> the key of its rate, in that order."""
+
+
+def outcome_rates(outcomes: Iterable[str]) -> dict[str, float]:
+    """The fraction of episodes (0..1) that ended each way, keyed by :data:`RATE_KEYS`'s
+    values (``success_rate`` first); all 0.0 for no episodes."""
+    counts = Counter(outcomes)
+    n = counts.total()
+    return {key: counts[outcome] / n if n else 0.0 for outcome, key in RATE_KEYS.items()}
+
+
+def spl(trajectories: Sequence[Trajectory]) -> float:
+    """Success weighted by path length (module docstring), 0..1; needs one trajectory at least."""
+    total = 0.0
+    for t in trajectories:
+        if t.success:
+            start, target = t.poses[0, :2], np.asarray(t.task["arena"]["target"])
+            shortest = max(float(np.hypot(*(target - start))) - t.task["arena"]["target_radius"], 1e-9)
+            total += shortest / max(shortest, path_length(t))
+    return total / len(trajectories)
+
+
+def metrics_of(trajectories: list[Trajectory]) -> dict:
+    """An evaluation's metrics: outcome rates, mean path length (metres), SPL and the
+    number of episodes (``tests``)."""
+    return {
+        **outcome_rates(t.outcome for t in trajectories),
+        "mean_path_length": float(np.mean([path_length(t) for t in trajectories])),
+        "spl": spl(trajectories),
+        "tests": len(trajectories),
+    }
+
+
+def summarise(trajectories: Sequence[Trajectory]) -> dict[str, Any]:
+    """Summary of a dataset for ``nirl-mj inspect``: outcome rates (fractions), steps per
+    episode (decisions), the action histogram, episodes per demonstrator and per
+    speed (m/s), number of distinct tasks."""
+    n = len(trajectories)
+    steps = np.array([len(t) for t in trajectories], dtype=np.int64)
+    counts = np.zeros(N_ACTIONS, dtype=np.int64)
+    for t in trajectories:
+        counts += np.bincount(t.actions, minlength=N_ACTIONS)
+    total = int(counts.sum())
+    return {
+        "episodes": n,
+        **outcome_rates(t.outcome for t in trajectories),
+        "pairs": total,
+        "mean_steps": float(steps.mean()) if n else 0.0,
+        "min_steps": int(steps.min()) if n else 0,
+        "max_steps": int(steps.max()) if n else 0,
+        "action_counts": {name: int(c) for name, c in zip(ACTION_NAMES, counts, strict=True)},
+        "action_fractions": {
+            name: (float(c) / total if total else 0.0) for name, c in zip(ACTION_NAMES, counts, strict=True)
+        },
+        "demonstrators": dict(sorted(Counter(t.demonstrator for t in trajectories).items())),
+        "speeds": dict(sorted(Counter(t.speed for t in trajectories).items())),
+        "tasks": len({task_json(t.task) for t in trajectories}),
+    }
