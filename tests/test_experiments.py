@@ -100,7 +100,7 @@ def test_shipped_experiments_load_full_and_quick():
         ({"methods": "NIRL"}, "methods = 'NIRL': expected a list"),
         ({"config": {"episode": 3}}, "config: unknown key(s) episode; accepted: episodes"),
         ({"config": {"episodes": "3"}}, "config.episodes = '3': expected a int"),
-        ({"demos": {"expert": "human"}}, "demos.expert = 'human': accepted: sensor, planner"),
+        ({"demos": {"expert": "human"}}, "demos.expert = 'human': accepted: planner, sensor, noisy, rule"),
         ({"set": {"arena": {"static_obstacles": -1}}}, "arena.static_obstacles = -1"),
         ({"set": {"physics": {}}}, "set: unknown key(s) physics; accepted: arena, robot"),
         ({"task": "no-such-task"}, "task: unknown task 'no-such-task'"),

@@ -83,10 +83,20 @@ def cmd_run(args: argparse.Namespace) -> int:
                             succ=f"{m['success_rate']:.1f}")  # fmt: skip
 
     try:
-        results = main_job(args.out, spec, seed=args.seed, variant=args.variant, demos=args.demos,
-                           expert=args.expert, episodes=args.episodes, tests=args.tests,
-                           workers=args.workers or default_workers(), resume=args.resume,
-                           log=lambda text: bar.write(text, file=sys.stderr), on_metrics=progress)  # fmt: skip
+        results = main_job(
+            args.out,
+            spec,
+            seed=args.seed,
+            variant=args.variant,
+            demos=args.demos,
+            expert=args.expert,
+            episodes=args.episodes,
+            tests=args.tests,
+            workers=args.workers or default_workers(),
+            resume=args.resume,
+            log=lambda text: bar.write(text, file=sys.stderr),
+            on_metrics=progress,
+        )
     finally:
         bar.close()
     print(results_table(results))
@@ -151,8 +161,10 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     print(f"demonstrators {summary['demonstrators']}  speeds {summary['speeds']}  tasks {summary['tasks']}")
     pred = _summary(trajectories, summary)
     _, report = map_pretreat(trajectories)
-    print(f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
-          f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)")  # fmt: skip
+    print(
+        f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
+        f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)"
+    )
     if args.json:
         print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": report.pairs_changed}))
     return 0
@@ -308,15 +320,20 @@ def cmd_render(args: argparse.Namespace) -> int:
         clip = video.record_video(env, subject.policy, seeds[0], args.out, *frame, args.fps, args.overlay,
                                   args.overwrite)  # fmt: skip
         t = clip.trajectory
-        print(f"wrote {clip.path}: {clip.frames} frames, {clip.duration:.1f} s simulated at {args.fps:g} fps, "
-              f"{t.outcome} after {len(t)} decisions")  # fmt: skip
+        print(
+            f"wrote {clip.path}: {clip.frames} frames, {clip.duration:.1f} s simulated at {args.fps:g} fps, "
+            f"{t.outcome} after {len(t)} decisions"
+        )
     if args.montage:
         strip = video.snapshot_strip(env, subject.policy, seeds[0], args.montage, args.snapshots, *frame,
                                      overwrite=args.overwrite)  # fmt: skip
         print(f"wrote {strip}")
     if args.paths:
         print(
-            f"wrote {video.paths_montage(env, subject.policy, seeds, args.paths, *frame, overwrite=args.overwrite)}"
+            "wrote "
+            + str(
+                video.paths_montage(env, subject.policy, seeds, args.paths, *frame, overwrite=args.overwrite)
+            )
         )
     return 0
 

@@ -12,6 +12,8 @@ from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
 from nirl_mj.learn.config import VARIANTS
 
+DESCRIPTION = "Neural inverse reinforcement learning (NIRL) for a Festo Robotino simulated in MuJoCo."
+
 
 def _number(kind: Callable, low: float, high: float, accepted: str) -> Callable[[str], float]:
     """An argparse type: ``kind(text)`` within [low, high], else an error naming what is accepted."""
@@ -65,8 +67,12 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
     p.add_argument("--task", default=default, metavar="SPEC",
                    help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
     p.add_argument("--quick", action="store_true", help="the spec's [quick] values: a smoke run")
-    p.add_argument("--out", default=None, help="output directory (default: runs/NAME[-quick]); rerunning into "
-                   "it resumes the same experiment, another one is refused")  # fmt: skip
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output directory (default: runs/NAME[-quick]); rerunning into "
+        "it resumes the same experiment, another one is refused",
+    )
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="where cells run: this process, local processes (default), or Ray")  # fmt: skip
     p.add_argument("--workers", type=_positive_int, default=None,
@@ -75,18 +81,23 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
     p.add_argument(
         "--retries", type=int, default=2, metavar="N", help="further attempts of a failing cell (default: 2)"
     )
-    p.add_argument("--report", action="store_true", help="run nothing: write the tables from the cells finished so "
-                   "far (a partial report of a long or interrupted experiment; safe while it runs)")  # fmt: skip
+    p.add_argument(
+        "--report",
+        action="store_true",
+        help="run nothing: write the tables from the cells finished so "
+        "far (a partial report of a long or interrupted experiment; safe while it runs)",
+    )
 
 
 # fmt: off
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="nirl-mj", description="Neural inverse reinforcement learning for a Robotino in MuJoCo.")
+    parser = argparse.ArgumentParser(prog="nirl-mj", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     iterations = dict(type=_positive_int, default=None, help="learner iterations (default: the variant's)")
 
     p = _command(sub, "run", c.cmd_run, "the main job: demonstrations, NIRL, held-out evaluation next to the "
-                 "references, report", "json", "quiet", "overwrite", "rerun=a copy of RUN_DIR/run.rrd (always written)")  # fmt: skip
+                 "references, report", "json", "quiet", "overwrite",
+                 "rerun=a copy of RUN_DIR/run.rrd (always written)")
     p.set_defaults(interrupted="finished stages are kept: continue with nirl-mj run --out {out} --resume")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
@@ -97,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", **iterations)
     p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
     p.add_argument("--workers", type=_positive_int, default=None,
-                   help="processes for demonstrations, training and evaluation (default: all cores)")  # fmt: skip
+                   help="processes for demonstrations, training and evaluation (default: all cores)")
 
     p = _command(sub, "rollout", c.cmd_rollout, "roll out a reference policy on fresh arenas and print each "
                  "episode's outcome", "json", "quiet")  # fmt: skip
@@ -119,8 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="dataset path (.npz)")
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
 
-    p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and record "
-                 "the episodes", "overwrite")  # fmt: skip
+    p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and "
+                 "record "
+                 "the episodes", "overwrite")
     p.add_argument("--episodes", type=_positive_int, default=30)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="dataset path (.npz)")
@@ -130,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
                  task="navigate; with --resume the run's own")  # fmt: skip
     p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
     p.add_argument("--out", required=True, help="run directory")
-    p.set_defaults(interrupted="finished iterations are kept: continue with nirl-mj train --out {out} --resume")
+    p.set_defaults(interrupted="finished iterations are kept: continue with "
+                               "nirl-mj train --out {out} --resume")
     p.add_argument("--variant", choices=VARIANTS, default=None, help="learner preset (default: default)")
     p.add_argument("--episodes", **iterations)
     p.add_argument("--seed", type=int, default=None, help="training seed (default: 0)")
@@ -151,8 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--which", default="selected", metavar="selected|last|N",
                    help="the selected policy, the last one, or the one of iteration N")  # fmt: skip
 
-    p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy offscreen: "
-                 "MP4, PNG montages", "overwrite", task="the run's own")  # fmt: skip
+    p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy "
+                 "offscreen: "
+                 "MP4, PNG montages", "overwrite", task="the run's own")
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
     who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
@@ -175,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="draw time, step, action and danger levels onto the video")  # fmt: skip
 
     _experiment_command(sub, "compare", "tasks/table1.toml",
-                        "the paper's Table I protocol: every method, R runs of T tests, next to the paper")  # fmt: skip
+                        "the paper's Table I protocol: every method, R runs of T tests, next to the paper")
     _experiment_command(
         sub, "sweep", "tasks/fig6.toml", "Fig. 6: success against obstacles and speed (CSV and line plot)"
     )

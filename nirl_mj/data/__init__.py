@@ -1,1 +1,2 @@
-"""The shared vocabulary and the files on disk: phi(s) and the actions, the trajectory record, the dataset and run-directory formats, atomic writes. Imports nothing of ours."""
+"""The shared vocabulary and the files on disk: phi(s) and the actions, the trajectory record,
+the dataset format, outcome rates, the run-directory type, atomic writes. Imports nothing of ours."""

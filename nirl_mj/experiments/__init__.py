@@ -1,1 +1,2 @@
-"""Seeds, run directories, training and evaluation on the simulation, demonstrations, the protocol and its executors, compare, sweep and the main job."""
+"""Seeds, run directories, training and evaluation on the simulation, demonstrations, the protocol and
+its executors, compare, sweep and the main job."""

@@ -26,13 +26,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.spec import SpecError
 
 KINDS = ("compare", "sweep")
 METHOD_KINDS = ("irl", "bc", "forward", "rule")
-EXPERTS = ("sensor", "planner", "rule")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
                "method", "demos", "config", "quick")  # fmt: skip
@@ -192,7 +192,7 @@ def from_dict(
 
     demos = _table(data.get("demos", {}), where("demos"))
     _known(demos, DEMO_KEYS, where("demos"), "")
-    expert = _choice(demos.get("expert", "sensor"), EXPERTS, f"{where('demos')}.expert")
+    expert = _choice(demos.get("expert", "sensor"), EXPERT_KINDS, f"{where('demos')}.expert")
     config = _learner_changes(_table(data.get("config", {}), where("config")), where("config"))
     methods = _methods(data, config, where)
 

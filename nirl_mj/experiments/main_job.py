@@ -115,8 +115,9 @@ def main_job(
         )
     if (out / "nirl" / "run.json").is_file() and not (out / "experiment.json").is_file():
         raise ExperimentError(
-            f"{out} is a main job of an older nirl-mj (its NIRL run is in nirl/; now runs/NIRL/SEED): it cannot "
-            f"be resumed; run the main job in a new --out (the old run still evaluates: nirl-mj eval --run {out}/nirl)"
+            f"{out} is a main job of an older nirl-mj (its NIRL run is in nirl/; now runs/NIRL/SEED): it "
+            "cannot be resumed; run the main job in a new --out (the old run still evaluates: "
+            f"nirl-mj eval --run {out}/nirl)"
         )
     experiment = main_experiment(task, seed, variant, demos, expert, episodes, tests)
     execution = Execution("serial" if workers == 1 else "local", workers, retries=0)
@@ -140,8 +141,14 @@ def main_job(
     nirl = RunDir(jobs["NIRL", 0].run_dir)
     demo_trajectories = load_dataset(out / "demos.npz")
     write_report(out, nirl, task, variant, results, paths, len(demo_trajectories), expert)
-    record_run(out / "run.rrd", demo_trajectories, nirl.read_metrics(), paths,
-               reward=RewardModel.from_dict(nirl.read_reward()), map_arena=(task, jobs["NIRL", 0].test_seeds[0]))  # fmt: skip
+    record_run(
+        out / "run.rrd",
+        demo_trajectories,
+        nirl.read_metrics(),
+        paths,
+        reward=RewardModel.from_dict(nirl.read_reward()),
+        map_arena=(task, jobs["NIRL", 0].test_seeds[0]),
+    )
     return results
 
 

@@ -110,7 +110,8 @@ def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> li
 class RunJob:
     """Method ``method``'s run ``run``: what it trains on, where, and the arenas it is tested on.
 
-    ``config``: the resolved learner config, flat (``LearnerConfig.to_dict``) (trainable methods); ``run_dir`` an absolute
+    ``config``: the resolved learner config, flat (``LearnerConfig.to_dict``; trainable methods);
+    ``run_dir`` an absolute
     path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the run's test arenas."""
 
     method: MethodSpec

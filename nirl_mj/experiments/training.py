@@ -111,7 +111,8 @@ def train(
         for key in ("task", "config", "seed"):
             if saved.get(key) != json.loads(json.dumps(record[key])):
                 raise RunError(
-                    f"{run} was trained with another {key}; resume with the same options, or train in a new --out"
+                    f"{run} was trained with another {key}; resume with the same options, "
+                    "or train in a new --out"
                 )
         # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
         resume = run.has_checkpoint

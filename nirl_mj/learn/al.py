@@ -83,7 +83,8 @@ def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
 class ProjectionStep:
     """AL's reward step: theta = w / ||w||, w = mu_E - mu_bar after the projection (steps 1-3).
 
-    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``;
+    reads ``gamma``, ``reward_features``,
     ``al_expectations``). theta is w scaled to unit norm: the loop maps rewards affinely into
     [0, 1 - gamma], so the scale of w does not change the learner; the unit norm keeps theta
     comparable with NIRL's ||theta|| <= 1. The convergence measure is t = ||w||_2.

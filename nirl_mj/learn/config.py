@@ -95,8 +95,13 @@ class MaxMarginConfig:
 
     def __post_init__(self) -> None:
         _choice("matching", self.matching, ("paper", "occupancy"))
-        _bounds(self, future_mix=(0.0, 1.0, "[]"), mmp_lambda=(0.0, None, "[)"), mmp_step_size=(0.0, None, "()"),
-                mmp_step_decay=(0.0, None, "[)"))  # fmt: skip
+        _bounds(
+            self,
+            future_mix=(0.0, 1.0, "[]"),
+            mmp_lambda=(0.0, None, "[)"),
+            mmp_step_size=(0.0, None, "()"),
+            mmp_step_decay=(0.0, None, "[)"),
+        )
         _counts(self, mmp_steps=1)
 
 

@@ -209,7 +209,8 @@ def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
 class MaxMarginStep:
     """NIRL's reward step (Algorithm 1, line 5): theta by projected subgradient on eq. 13.
 
-    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``); ``matching`` chooses
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``);
+    ``matching`` chooses
     what the margin compares ("paper": eq. 11 expectations of whole trajectories;
     "occupancy": per-pair discounted sums with ``future_mix`` choosing what follows
     a deviation), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.

@@ -192,7 +192,8 @@ def samples(
 class RelativeEntropyStep:
     """RE-IRL's reward step: ``re_steps`` ascent steps on g(theta) over the pooled samples.
 
-    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``;
+    reads ``gamma``, ``reward_features``,
     ``re_*``). ``update`` needs the ``context`` (the rollouts' policy) for pi(tau).
     """
 

@@ -86,7 +86,8 @@ def minimise_scirl(
 class ScirlStep:
     """SCIRL's reward step: theta from the demonstrations alone, computed once, then fixed.
 
-    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``) (reads ``gamma``, ``reward_features``,
+    ``loop`` and ``own`` are the loop's config and this step's (``nirl_mj.learn.config``;
+    reads ``gamma``, ``reward_features``,
     ``margin_loss``, ``scirl_steps``, ``scirl_step_size``). The convergence measure is J at theta:
     the mean hinge of the expert's pairs (0 when every margin is met).
     """

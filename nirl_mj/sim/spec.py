@@ -292,8 +292,12 @@ def _check_arena(obj: ArenaSpec, where: str) -> None:
     if w <= 0 or h <= 0:
         raise SpecError(f"{where}.size = {list(obj.size)}: both sides must be > 0")
     _over(max(w, h), "arena_side", f"{where}.size", "metres per side")
-    _over((w / obj.grid_resolution) * (h / obj.grid_resolution), "grid_cells",
-          f"{where}.size / grid_resolution (cells)", "occupancy-grid cells; raise grid_resolution")  # fmt: skip
+    _over(
+        (w / obj.grid_resolution) * (h / obj.grid_resolution),
+        "grid_cells",
+        f"{where}.size / grid_resolution (cells)",
+        "occupancy-grid cells; raise grid_resolution",
+    )
     count = obj.static_obstacles + obj.interior_walls + obj.moving_obstacles + len(obj.obstacles)
     _over(
         count, "obstacles", f"{where}: static_obstacles + interior_walls + moving_obstacles + obstacles", ""
@@ -305,8 +309,10 @@ def _check_arena(obj: ArenaSpec, where: str) -> None:
             raise SpecError(f"{where}.{name} = {[x, y]}: must lie inside the arena {list(obj.size)}")
     gap = math.dist(obj.start, obj.target)
     if gap <= obj.target_radius:
-        raise SpecError(f"{where}.start = {list(obj.start)} is within target_radius ({obj.target_radius} m) of "
-                        f"target = {list(obj.target)}: an episode would start at its goal")  # fmt: skip
+        raise SpecError(
+            f"{where}.start = {list(obj.start)} is within target_radius ({obj.target_radius} m) of "
+            f"target = {list(obj.target)}: an episode would start at its goal"
+        )
     for i, obstacle in enumerate(obj.obstacles):
         x, y = obstacle.position
         if not (0 <= x <= w and 0 <= y <= h):
@@ -336,8 +342,10 @@ def _check_timing(obj: TaskSpec, where: str) -> None:
     # largest yaw acceleration max_accel allows: sim/drive.py action_profile).
     need = 4.0 * math.radians(60.0) / control.decision_period**2 * WHEEL_DISTANCE
     if control.max_accel < need:
-        raise SpecError(f"{where}.control.max_accel = {control.max_accel:g}: a 60-degree turn in one decision "
-                        f"({control.decision_period:g} s) needs max_accel >= {need:.3f} m/s^2")  # fmt: skip
+        raise SpecError(
+            f"{where}.control.max_accel = {control.max_accel:g}: a 60-degree turn in one decision "
+            f"({control.decision_period:g} s) needs max_accel >= {need:.3f} m/s^2"
+        )
     _over(obj.step_budget, "step_budget", f"{where}: step budget (control.step_budget, or computed from the "
           "start-target distance, speed, decision_period and budget_factor)", "decisions")  # fmt: skip
 
