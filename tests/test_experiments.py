@@ -25,7 +25,7 @@ from nirl_mj.experiments.definition import (
     from_dict,
     load_experiment,
 )
-from nirl_mj.experiments.executors import Cell, CellStore, ExecutorError, run_cells
+from nirl_mj.experiments.executors import Cell, CellStore, Executor, ExecutorError, run_cells
 from nirl_mj.experiments.stats import summarise_runs, t_interval, wilson
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -429,3 +429,16 @@ def test_a_cell_runs_on_one_torch_thread_and_the_caller_keeps_its_own():
     torch.set_num_threads(2)
     assert run_cells([Cell("t", threads_cell)], "serial").results == {"t": {"threads": 1}}
     assert torch.get_num_threads() == 2
+
+
+def test_a_worker_death_costs_no_attempt_to_the_cells_beside_it(tmp_path):
+    """Two cells run together and the pool breaks: the innocent one is run again alone without an
+    attempt counted, and so is the one that died (it survives its second, lone run)."""
+    retries = []
+    cells = [Cell("dies", dying_cell, (str(tmp_path),)),
+             Cell("slow", counted_cell, (str(tmp_path), "slow", 0))]  # fmt: skip
+    with Executor("local", workers=2, retries=0) as runner:
+        report = runner.run(cells, on_retry=lambda cell_id, why: retries.append((cell_id, why)))
+    assert report.results["dies"] == {"survived": True} and not report.failures, report.failures
+    assert retries and all("no attempt counted" in why for _, why in retries)
+    assert "dies" in {cell_id for cell_id, _ in retries}

@@ -11,6 +11,7 @@ exists, even one that appeared while the file was being written.
 from __future__ import annotations
 
 import os
+import re
 import secrets
 from collections.abc import Callable
 from pathlib import Path
@@ -77,6 +78,18 @@ class AtomicFile:
             self.commit()
         else:
             self.discard()
+
+
+_TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp[^/]*$")  # the names _create_temporary gives
+
+
+def leftover_temporaries(directory: str | os.PathLike) -> list[Path]:
+    """Temporary files of this module's writers in ``directory``: left there only by a process
+    killed while writing (a live writer removes its own), so safe to delete when no writer runs."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        return []
+    return sorted(p for p in directory.iterdir() if p.is_file() and _TEMPORARY.match(p.name))
 
 
 def _create_temporary(path: Path, suffix: str) -> Path:

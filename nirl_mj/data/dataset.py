@@ -8,6 +8,7 @@ atomically; :func:`load_dataset` validates everything and raises one
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import zipfile
@@ -159,9 +160,22 @@ def load_dataset(path: str | os.PathLike) -> list[Trajectory]:
         raise DatasetError(f"{where}: no such file")
     if not path.is_file():
         raise DatasetError(f"{where}: not a regular file")
+    if not os.access(path, os.R_OK):
+        raise DatasetError(f"{where}: not readable (permission denied)")
     arrays = _read_npz(path)
     _validate(arrays, where)
     return _from_arrays(arrays, where)
+
+
+def dataset_digest(trajectories: Sequence[Trajectory]) -> str:
+    """sha256 of the dataset's content (every array as :func:`save_dataset` would store it), so two
+    files holding the same demonstrations match whatever their zip metadata, and any change shows."""
+    h = hashlib.sha256()
+    for key, array in sorted(_to_arrays(trajectories).items()):
+        array = np.ascontiguousarray(array)
+        h.update(f"{key}|{array.dtype.str}|{array.shape}|".encode())
+        h.update(array.tobytes())
+    return h.hexdigest()
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from nirl_mj.data.atomic import write_npz, write_text
+from nirl_mj.data.atomic import leftover_temporaries, write_npz, write_text
 
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
@@ -74,6 +74,14 @@ class RunDir:
 
     def is_empty(self) -> bool:
         return not self.path.exists() or not any(self.path.iterdir())
+
+    def remove_leftovers(self) -> list[Path]:
+        """Deletes temporary files left by a process killed while writing (call with no writer
+        running: when resuming); returns what was removed."""
+        leftovers = leftover_temporaries(self.path)
+        for path in leftovers:
+            path.unlink(missing_ok=True)
+        return leftovers
 
     def names(self) -> set[str]:
         """The names of the files present."""

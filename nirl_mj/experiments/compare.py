@@ -63,7 +63,7 @@ def run_compare(
     execution = execution or Execution()
     out, jobs = prepare(experiment, out, execution, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
-    with execution.start(out) as runner:
+    with execution.start(out, log) as runner:
         if on_start:
             on_start(len(cells), runner.finished(cells))
         report = runner.run(cells, on_done)

@@ -166,9 +166,11 @@ class Executor:
         cells: Iterable[Cell],
         store: CellStore | None = None,
         on_done: Callable[[str, Any, Failure | None], None] | None = None,
+        on_retry: Callable[[str, str], None] | None = None,
     ) -> Report:
         """Runs the cells not already in ``store``; returns every result by id and the failures.
-        ``on_done(id, result, failure)`` is called as each cell finishes (result None on failure)."""
+        ``on_done(id, result, failure)`` is called as each cell finishes (result None on failure),
+        ``on_retry(id, why)`` when a cell is run again."""
         cells = list(cells)
         ids = [c.id for c in cells]
         if len(set(ids)) != len(ids):
@@ -185,7 +187,7 @@ class Executor:
             if self._backend is None:
                 backends = {"serial": _Serial, "local": _Local, "ray": _Ray}
                 self._backend = backends[self.kind](self.workers, self.address)
-            _drive(self._backend, todo, self.retries, store, report, on_done)
+            _drive(self._backend, todo, self.retries, store, report, on_done, on_retry)
         report.results = {i: report.results[i] for i in ids if i in report.results}
         return report
 
@@ -215,15 +217,30 @@ def run_cells(
         return runner.run(cells, store, on_done)
 
 
-def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_done) -> None:
+def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_done, on_retry=None) -> None:
     """Keeps at most ``backend.capacity`` cells in flight (so a crashed process takes only
-    running cells with it), stores results as they arrive and retries failures."""
+    running cells with it), stores results as they arrive and retries failures.
+
+    A worker process that dies takes every cell running in its pool with it, and which one
+    killed it is unknown. So a cell lost beside others costs no attempt: it becomes a suspect
+    and runs again alone, where a second death is its own (and counts)."""
     queue, attempts, in_flight = deque(todo), Counter(), {}
+    suspects: set[str] = set()
+    shared: set[str] = set()  # cells that ran beside another in this attempt
     while queue or in_flight:
         while queue and len(in_flight) < backend.capacity:
+            alone = queue[0].id in suspects or any(c.id in suspects for c in in_flight.values())
+            if alone and in_flight:
+                break  # a suspect runs alone
             cell = queue.popleft()
             attempts[cell.id] += 1
+            if in_flight:
+                shared.update([cell.id, *(c.id for c in in_flight.values())])
+            else:
+                shared.discard(cell.id)
             in_flight[backend.submit(cell)] = cell
+            if alone:
+                break
         for handle, (status, payload, seconds) in backend.wait_some(list(in_flight)):
             cell = in_flight.pop(handle)
             if status == "ok":
@@ -234,11 +251,23 @@ def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_do
                 report.computed.append(cell.id)
                 if on_done:
                     on_done(cell.id, result, None)
+                continue
+            error = (payload.strip().splitlines() or ["unknown error"])[-1]
+            if status == "lost" and cell.id in shared and cell.id not in suspects:
+                suspects.add(cell.id)
+                attempts[cell.id] -= 1  # not necessarily its fault: no attempt counted
+                queue.appendleft(cell)
+                if on_retry:
+                    on_retry(cell.id, f"a worker process died while it ran beside others ({error}); "
+                             "running it again alone, no attempt counted")  # fmt: skip
             elif attempts[cell.id] <= retries:
                 queue.append(cell)  # deterministic cells fail again; a lost process may not
+                if on_retry:
+                    on_retry(
+                        cell.id, f"attempt {attempts[cell.id]} of {retries + 1} failed ({error}); retrying"
+                    )
             else:
-                lines = payload.strip().splitlines() or ["unknown error"]
-                failure = Failure(cell.id, lines[-1], payload, attempts[cell.id])
+                failure = Failure(cell.id, error, payload, attempts[cell.id])
                 report.failures[cell.id] = failure
                 if on_done:
                     on_done(cell.id, None, failure)
@@ -294,7 +323,7 @@ class _Local:
             try:
                 out.append((future, future.result()))
             except (BrokenProcessPool, CancelledError) as exc:  # a worker died (killed, out of memory)
-                out.append((future, ("error", f"{type(exc).__name__}: a worker process died: {exc}", 0.0)))
+                out.append((future, ("lost", f"{type(exc).__name__}: a worker process died: {exc}", 0.0)))
                 self._discard(pool)  # only the broken pool: a replacement started meanwhile stays
         return out
 

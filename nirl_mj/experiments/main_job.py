@@ -128,7 +128,7 @@ def main_job(
     ]
     trained = [RunDir(job.run_dir) for job in jobs.values() if job.method.trains]
     log(f"training and testing {len(cells)} methods ({execution.executor}, {workers} worker(s))")
-    with follow_metrics(trained, on_metrics), execution.start(out) as runner:
+    with follow_metrics(trained, on_metrics), execution.start(out, log) as runner:
         report = runner.run(cells)
     if report.failures:
         failed = "; ".join(f"{f.id}: {f.error}" for f in report.failures.values())

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
 from nirl_mj.sim.spec import TaskSpec
 
@@ -84,6 +85,9 @@ def prepare(
 
     execution.check_output(out)
     out = open_output(out, experiment)
+    if not execution.report_only:  # a report may run beside the experiment: then nothing is left over
+        for leftover in [*leftover_temporaries(out), *leftover_temporaries(out / "cells")]:
+            leftover.unlink(missing_ok=True)  # written by a process killed while writing
     demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
     return out, run_jobs(experiment, out, demos)
 
@@ -214,14 +218,16 @@ class Execution:
         if self.address and self.executor != "ray":
             raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
 
-    def start(self, out: Path) -> CellRunner:
-        """A runner storing finished cells in OUT/cells; use it as a context manager."""
+    def start(self, out: Path, log: Callable[[str], None] | None = None) -> CellRunner:
+        """A runner storing finished cells in OUT/cells; use it as a context manager. ``log``
+        hears of every cell that is run again, and why."""
         from nirl_mj.experiments.executors import CellStore, Executor
 
         return CellRunner(
             Executor(self.executor, self.workers, self.address, self.retries),
             CellStore(out / "cells"),
             self.report_only,
+            log=log,
         )
 
     def check_output(self, out: str | Path) -> None:
@@ -246,12 +252,14 @@ class CellRunner:
     store: Any
     report_only: bool = False
     unfinished: int = 0  # cells neither finished nor failed (report_only)
+    log: Callable[[str], None] | None = None
 
     def run(self, cells: list, on_done: Callable | None = None):
         """Runs the cells not stored yet; returns the executor's report (with ``report_only``: the
         stored cells only, nothing run)."""
         if not self.report_only:
-            return self.executor.run(cells, self.store, on_done)
+            on_retry = (lambda cell_id, why: self.log(f"cell {cell_id}: {why}")) if self.log else None
+            return self.executor.run(cells, self.store, on_done, on_retry)
         from nirl_mj.experiments.executors import Report
 
         report = Report()

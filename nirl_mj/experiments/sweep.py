@@ -86,7 +86,7 @@ def run_sweep(
         for n in experiment.obstacles
         for v in experiment.speeds
     }
-    with execution.start(out) as runner:
+    with execution.start(out, log) as runner:
         if on_start:
             on_start(len(trainings) + len(tests), runner.finished([*trainings, *tests.values()]))
         trained = runner.run(trainings, on_done)

@@ -20,7 +20,7 @@ from typing import Any
 import dm_env
 import numpy as np
 
-from nirl_mj.data.dataset import load_dataset
+from nirl_mj.data.dataset import dataset_digest, load_dataset
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
@@ -103,6 +103,7 @@ def train(
         "config": config.to_dict(),
         "seed": seed,
         "demos": str(Path(demos_path).resolve()),  # a resume may run from another directory
+        "demos_sha256": dataset_digest(demos),  # the demonstrations by content: a resume must use the same
         "demo_seeds": [t.arena_seed for t in demos],
         "validation_seeds": validation_seeds(config, seed),
     }
@@ -114,6 +115,13 @@ def train(
                     f"{run} was trained with another {key}; resume with the same options, "
                     "or train in a new --out"
                 )
+        if saved.get("demos_sha256", record["demos_sha256"]) != record["demos_sha256"]:
+            raise RunError(
+                f"{demos_path} holds other demonstrations than {run} was trained on (content sha256 "
+                f"{record['demos_sha256'][:12]}..., the run's {saved['demos_sha256'][:12]}...); resume "
+                f"with the run's own dataset ({saved['demos']}), or train in a new --out"
+            )
+        run.remove_leftovers()  # temporary files of a process killed while writing
         # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
         resume = run.has_checkpoint
     elif not run.is_empty():
@@ -164,6 +172,7 @@ def ensure_trained(
     run = RunDir(run_dir)
     if run.is_finished:
         return run.read_record()
+    run.remove_leftovers()
     resume = run.has_checkpoint
     if not resume and run.path.exists():
         extra = run.names() - {RUN_FILE, METRICS_FILE, REWARD_FILE}
