@@ -159,6 +159,11 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     summary = summarise(trajectories)
     print(f"{args.path}: valid nirl-mj dataset")
     print(f"demonstrators {summary['demonstrators']}  speeds {summary['speeds']}  tasks {summary['tasks']}")
+    empty = sum(len(t) == 0 for t in trajectories)
+    if empty:
+        usable = "no learner can train on it" if empty == len(trajectories) else "they add nothing to learn"
+        print(f"warning: {empty} of {len(trajectories)} trajectories end before their first decision; "
+              f"{usable}")  # fmt: skip
     pred = _summary(trajectories, summary)
     _, report = map_pretreat(trajectories)
     print(

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from nirl_mj.data.features import N_ACTIONS
-from nirl_mj.data.trajectory import Trajectory, stack_pairs
+from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.learn import network
-from nirl_mj.learn.loop import greedy_policy, network_inputs
+from nirl_mj.learn.loop import demonstrated_pairs, greedy_policy, network_inputs
 
 
 def behaviour_cloning(
@@ -25,7 +25,7 @@ def behaviour_cloning(
     scaled: bool = True,
 ):
     """Returns the greedy policy on phi(s) of a network trained to predict the demonstrated actions."""
-    phi, actions = stack_pairs(demos)
+    phi, actions = demonstrated_pairs(demos)
     x = np.repeat(network_inputs(phi, scaled), N_ACTIONS, axis=0)
     outputs = np.tile(np.arange(N_ACTIONS), len(actions))
     targets = (outputs == np.repeat(actions, N_ACTIONS)).astype(np.float64)

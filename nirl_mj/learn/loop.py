@@ -71,6 +71,17 @@ class NetworkAgent:
         return network.sample_action(q, self.eta, self.rng)
 
 
+def demonstrated_pairs(demos: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """phi(s) (N, 16) and actions (N,) of every demonstrated decision; an error if there are none."""
+    phi, actions = stack_pairs(demos)
+    if len(actions) == 0:
+        raise ValueError(
+            f"the demonstrations hold no state-action pair (all {len(demos)} trajectories end before "
+            "their first decision): there is nothing to learn from"
+        )
+    return phi, actions
+
+
 def greedy_policy(net: network.QNetwork, scaled: bool) -> Callable[[np.ndarray], int]:
     """The trained policy on phi(s) (eq. 9), as ``nirl_mj.experts.policies`` policies are."""
 
@@ -185,7 +196,7 @@ class IrlLoop:
         self.rng = np.random.default_rng([seed, 7])
         torch.set_num_threads(1)  # tiny network: threads only add nondeterminism
         self.net = network.QNetwork(seed=seed)
-        self.demo_phi, self.demo_actions = stack_pairs(demos)
+        self.demo_phi, self.demo_actions = demonstrated_pairs(demos)
         self.demo_inputs = network_inputs(self.demo_phi, config.loop.input_scaling)
         self.reward_step = reward_step(config, demos) if config.loop.reward_source == "learned" else None
         n_theta = all_action_features(self.demo_phi[:1], config.loop.reward_features).shape[-1]
