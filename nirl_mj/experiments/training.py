@@ -77,7 +77,7 @@ def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Po
 
 
 def _greedy(weights: dict[str, np.ndarray], config: LearnerConfig) -> Policy:
-    net = network.QNetwork(seed=0)
+    net = network.QNetwork(n_hidden=config.loop.hidden_units, seed=0)
     network.set_weights(net, weights)
     return greedy_policy(net, config.loop.input_scaling)
 
@@ -109,6 +109,8 @@ def train(
     }
     if resume:
         saved = run.read_record()
+        # a record written before a setting existed holds its default: compare resolved configs
+        saved = {**saved, "config": run_config(saved).to_dict()}
         for key in ("task", "config", "seed"):
             if saved.get(key) != json.loads(json.dumps(record[key])):
                 raise RunError(

@@ -63,6 +63,11 @@ class LoopConfig:
     # new validation arenas, and the best over both sets is chosen (1: no second round)
     final_candidates: int = 3
     reward_source: str = "learned"  # "progress" / "constant": the controls (a known reward, no step)
+    # the inner learner (docs/ALGORITHM.md, "Inner learner"): what a target bootstraps from, Q(s', a')
+    # of the next pair taken ("sarsa", eq. 14) or max_a' Q(s', a') ("q": Q-learning, the greedy
+    # policy's values); and the hidden units of the network (paper: 10)
+    bootstrap: str = "sarsa"
+    hidden_units: int = 10
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
 
     def __post_init__(self) -> None:
@@ -71,11 +76,13 @@ class LoopConfig:
         _choice("reward_features", self.reward_features, ("paper", "extended"))
         _choice("selection", self.selection, ("validation", "demo_accuracy"))
         _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
+        _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
-                validation_arenas=1, validate_every=1, final_candidates=1)  # fmt: skip
+                validation_arenas=1, validate_every=1, final_candidates=1,
+                hidden_units=1)  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -195,7 +195,7 @@ class IrlLoop:
         self.seed = seed
         self.rng = np.random.default_rng([seed, 7])
         torch.set_num_threads(1)  # tiny network: threads only add nondeterminism
-        self.net = network.QNetwork(seed=seed)
+        self.net = network.QNetwork(n_hidden=config.loop.hidden_units, seed=seed)
         self.demo_phi, self.demo_actions = demonstrated_pairs(demos)
         self.demo_inputs = network_inputs(self.demo_phi, config.loop.input_scaling)
         self.reward_step = reward_step(config, demos) if config.loop.reward_source == "learned" else None
@@ -233,9 +233,11 @@ class IrlLoop:
         q_next_all = network.q_values(self.net, network_inputs(t.next_phi, c.input_scaling))
         q_sa = q[np.arange(len(t)), t.action]
         rows = np.arange(len(t))
-        q_next = np.where(
-            t.next_action >= 0, q_next_all[rows, np.maximum(t.next_action, 0)], q_next_all.max(axis=1)
-        )
+        greedy_next = q_next_all.max(axis=1)
+        if c.bootstrap == "q":  # Q-learning: the greedy policy's value of the next state
+            q_next = greedy_next
+        else:  # eq. 14: the next pair the policy took (the greedy one after a timeout's last step)
+            q_next = np.where(t.next_action >= 0, q_next_all[rows, np.maximum(t.next_action, 0)], greedy_next)
         rewards, spread = self._rewards(t)
         targets, clipped = sarsa.sarsa_targets(
             q_sa, rewards, q_next, t.terminal, c.alpha, c.gamma, t.terminal_value
