@@ -68,6 +68,9 @@ class LoopConfig:
     # policy's values); and the hidden units of the network (paper: 10)
     bootstrap: str = "sarsa"
     hidden_units: int = 10
+    # the kept policy: the trained network (0) or the exponential average of its weights with this
+    # decay b in [0, 1), avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging)
+    weight_averaging: float = 0.0
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
 
     def __post_init__(self) -> None:
@@ -79,7 +82,8 @@ class LoopConfig:
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
-                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
+                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
+                weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
                 hidden_units=1)  # fmt: skip

@@ -291,14 +291,15 @@ class IrlLoop:
         self.replay = ([*self.replay, fresh])[-max(c.replay_episodes, 1) :]
         cost = self._fit(Transitions.concat(self.replay))
         after = network.get_weights(self.net)
+        kept, policy_net = self._kept_policy(after)
 
-        greedy = network.greedy_actions(network.q_values(self.net, self.demo_inputs))
+        greedy = network.greedy_actions(network.q_values(policy_net, self.demo_inputs))
         demo_acc = float(np.mean(greedy == self.demo_actions))
         preferred = (
             RewardModel(self.theta, c.reward_features).rewards_all_actions(self.demo_phi).argmax(axis=1)
         )
-        validation = validate(self.net) if validate is not None else None
-        self.kept.append(after)
+        validation = validate(policy_net) if validate is not None else None
+        self.kept.append(kept)
         self.thetas.append(self.theta.copy())
         self.scores.append(
             demo_acc if c.selection == "demo_accuracy" else (validation if validation is not None else -1.0)
@@ -325,6 +326,20 @@ class IrlLoop:
         )
         self.iteration += 1
         return metrics
+
+    def _kept_policy(self, after: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], network.QNetwork]:
+        """The policy this iteration keeps, and a network holding it: the trained network itself, or
+        with ``weight_averaging`` = b > 0 the exponential average of the weights so far,
+        avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging: the iterates' noise averages out; the
+        previous average is the last kept policy, so a checkpoint needs nothing more)."""
+        b = self.loop.weight_averaging
+        if b == 0.0:
+            return after, self.net
+        previous = self.kept[-1] if self.kept else after
+        kept = {k: b * previous[k] + (1.0 - b) * after[k] for k in after}
+        net = network.QNetwork(n_hidden=self.loop.hidden_units, seed=0)
+        network.set_weights(net, kept)
+        return kept, net
 
     @property
     def selected(self) -> int:

@@ -1,0 +1,68 @@
+"""The inner learner's options, each on a hand-computed case: Q-learning targets, the network
+width, and Polyak averaging of the kept policy."""
+
+import numpy as np
+import pytest
+
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.learn import network
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.loop import IrlLoop, Transitions
+
+PHI = np.array([0, 0, 0, 0, 0, 0, 0, 4, 1, 0, 0, 0, 0, 0, 0, 0], dtype=float)
+
+
+def demos() -> list[Trajectory]:
+    n = 3
+    trajectory = Trajectory(
+        features=np.tile(PHI, (n + 1, 1)), actions=np.array([0, 1, 0]), ranges=np.zeros((n + 1, 9)),
+        poses=np.zeros((n + 1, 3)), times=0.5 * np.arange(n + 1), arena_seed=0, task={}, speed=2.0,
+        outcome="timeout", demonstrator="test",
+    )  # fmt: skip
+    return [trajectory]
+
+
+def loop(**changes) -> IrlLoop:
+    config = LearnerConfig.preset("default", reward_source="constant", reward_scaling=False, **changes)
+    return IrlLoop(config, demos(), seed=0)
+
+
+def transitions(next_action: int, terminal: bool) -> Transitions:
+    return Transitions(
+        phi=PHI[None], action=np.array([2]), next_phi=PHI[None], next_action=np.array([next_action]),
+        terminal=np.array([terminal]), terminal_value=np.array([0.0]), progress=np.zeros(1),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("bootstrap", ["sarsa", "q"])
+def test_targets_bootstrap_from_the_next_pair_or_the_greedy_value(bootstrap):
+    learner = loop(bootstrap=bootstrap, alpha=0.5, gamma=0.5)
+    q = network.q_values(learner.net, learner.demo_inputs[:1])[0]  # every state here is PHI
+    targets, _, _ = learner._targets(transitions(next_action=4, terminal=False))
+    nxt = q.max() if bootstrap == "q" else q[4]
+    # eq. 14 with r = 1 (constant reward, unscaled): Q + alpha (r + gamma Q' - Q)
+    assert targets[0] == pytest.approx(np.clip(q[2] + 0.5 * (1.0 + 0.5 * nxt - q[2]), 0, 1))
+    terminal, _, _ = learner._targets(transitions(next_action=4, terminal=True))
+    assert terminal[0] == pytest.approx(np.clip(q[2] + 0.5 * (1.0 - q[2]), 0, 1))  # no bootstrap
+
+
+def test_the_network_width_is_a_setting():
+    learner = loop(hidden_units=32)
+    assert network.get_weights(learner.net)["W1"].shape == (32, 17)
+    assert network.get_weights(learner.net)["W2"].shape == (6, 33)
+
+
+def test_polyak_averaging_keeps_the_exponential_average_of_the_weights():
+    learner = loop(weight_averaging=0.75)
+    w = [{"W1": np.full((10, 17), float(i)), "W2": np.full((6, 11), 2.0 * i)} for i in (4, 8, 16)]
+    kept = []
+    for weights in w:
+        policy, net = learner._kept_policy(weights)
+        learner.kept.append(policy)
+        kept.append(policy["W1"][0, 0])
+        np.testing.assert_array_equal(network.get_weights(net)["W2"], policy["W2"])
+    # avg_0 = W_0; avg_i = 0.75 avg_(i-1) + 0.25 W_i
+    assert kept == [4.0, 0.75 * 4 + 0.25 * 8, 0.75 * 5 + 0.25 * 16]
+    plain = loop()
+    policy, net = plain._kept_policy(w[0])
+    assert policy is w[0] and net is plain.net  # off: the trained network itself
