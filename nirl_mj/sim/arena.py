@@ -40,6 +40,7 @@ import mujoco
 import numpy as np
 from dm_control import composer, mjcf
 
+from nirl_mj.sim.floorplans import slot_counts
 from nirl_mj.sim.layout import Layout, advance_in_place, time_to_wall
 from nirl_mj.sim.spec import ArenaSpec
 
@@ -121,7 +122,8 @@ class NavigationArena(composer.Arena):
 
     Slots: ``spec.static_obstacles`` + explicit boxes box slots,
     ``spec.static_obstacles`` + explicit cylinders cylinder slots,
-    ``spec.interior_walls`` + explicit walls wall slots and
+    ``spec.interior_walls`` + explicit walls wall slots, each plus the most
+    the floor plan adds (:func:`~nirl_mj.sim.floorplans.slot_counts`), and
     ``spec.moving_obstacles`` mocap cylinders, enough for any layout that
     :func:`~nirl_mj.sim.layout.generate_layout` draws from ``spec``.
     """
@@ -190,10 +192,11 @@ class NavigationArena(composer.Arena):
         ]
 
         explicit = [o.shape for o in spec.obstacles]
+        plan = slot_counts(spec)
         counts = {
-            "box": spec.static_obstacles + explicit.count("box"),
-            "cylinder": spec.static_obstacles + explicit.count("cylinder"),
-            "wall": spec.interior_walls + explicit.count("wall"),
+            "box": spec.static_obstacles + explicit.count("box") + plan["box"],
+            "cylinder": spec.static_obstacles + explicit.count("cylinder") + plan["cylinder"],
+            "wall": spec.interior_walls + explicit.count("wall") + plan["wall"],
         }
         self._pools: dict[str, tuple[list, list]] = {}
         slot = 0

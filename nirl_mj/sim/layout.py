@@ -10,9 +10,11 @@ Generation order (every draw through the caller's ``random_state``, so a seed
 reproduces the arena):
 
 1. ``start_yaw`` (one draw if it is ``"random"``);
-2. per whole-arena attempt: the random static obstacles, then the interior
+2. the floor plan's family (one draw if ``floor_plan`` is ``"mixed"``);
+3. per whole-arena attempt: the floor plan's structures (none for ``"random"``:
+   :mod:`nirl_mj.sim.floorplans`), the random static obstacles, then the interior
    wall segments (explicit obstacles are fixed and always present);
-3. once a solvable static arena is found: the moving obstacles.
+4. once a solvable static arena is found: the moving obstacles.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from nirl_mj.sim.drive import BODY_RADIUS
+from nirl_mj.sim.floorplans import FloorPlan, clearance, draw_floor_plan, pick_family
 from nirl_mj.sim.spec import ArenaSpec, ObstacleSpec
 
 # Position redraws per obstacle and attempt before the attempt is given up:
@@ -88,9 +91,10 @@ class Layout:
     """One episode's arena.
 
     ``obstacles`` are the static ones (explicit spec obstacles first, then the
-    random obstacles, then the interior walls), not the 4 border walls, which
-    are implied by ``size`` (inner faces at 0 and ``size``). ``moving`` holds
-    the moving cylinders' initial states.
+    floor plan's, the random obstacles, then the interior walls), not the 4 border
+    walls, which are implied by ``size`` (inner faces at 0 and ``size``). ``moving``
+    holds the moving cylinders' initial states; ``floor_plan`` the family drawn
+    (``arena.floor_plan``, or for ``"mixed"`` the one chosen).
     """
 
     size: tuple[float, float]
@@ -99,6 +103,7 @@ class Layout:
     target: tuple[float, float]
     obstacles: tuple[Obstacle, ...] = ()
     moving: tuple[MovingObstacle, ...] = ()
+    floor_plan: str = "random"
 
 
 @dataclass
@@ -279,9 +284,10 @@ def generate_layout(
     """Draws one solvable arena for ``spec``.
 
     Explicit ``spec.obstacles`` come first and are always present as given.
-    Random obstacles, wall segments and moving obstacles lie entirely inside
-    the arena and keep ``spec.clear_radius + robot_radius`` metres (outline to
-    point) from start and target. Solvable means: on an occupancy grid at
+    The floor plan's structures (``spec.floor_plan``), random obstacles, wall
+    segments and moving obstacles lie inside the arena and keep
+    ``spec.clear_radius + robot_radius`` metres (outline to point) from start
+    and target. Solvable means: on an occupancy grid at
     ``spec.grid_resolution`` inflated by ``robot_radius + spec.path_margin``
     the start and target cells are free and 8-connected. Up to
     ``spec.max_tries`` whole-arena attempts; raises
@@ -306,19 +312,33 @@ def generate_layout(
 
     keep = spec.clear_radius + robot_radius
     points = np.array([start, target])
+    family = pick_family(spec, random_state)
     blocked = unplaceable = 0
     for _ in range(spec.max_tries):
+        plan = None if family == "random" else draw_floor_plan(family, spec, random_state, keep)
         obstacles = _random_obstacles(spec, random_state, points, keep)
         walls = _random_walls(spec, random_state, points, keep)
-        if obstacles is None or walls is None:
+        if obstacles is None or walls is None or (plan is None and family != "random"):
             unplaceable += 1
             continue
-        layout = Layout(base.size, start, start_yaw, target, explicit + obstacles + walls, ())
+        static = explicit + _plan_obstacles(plan) + obstacles + walls
+        layout = Layout(base.size, start, start_yaw, target, static, (), family)
         if path_exists(occupancy_grid(layout, spec.grid_resolution, inflate), start, target):
             moving = _random_moving(spec, random_state, points, keep)
-            return Layout(base.size, start, start_yaw, target, layout.obstacles, moving)
+            return Layout(base.size, start, start_yaw, target, layout.obstacles, moving, family)
         blocked += 1
-    raise ArenaGenerationError(_failure_message(spec, blocked, unplaceable))
+    raise ArenaGenerationError(_failure_message(spec, family, blocked, unplaceable))
+
+
+def _plan_obstacles(plan: FloorPlan | None) -> tuple[Obstacle, ...]:
+    if plan is None:
+        return ()
+    return tuple(
+        Obstacle("cylinder", x, y, (hx,), 0.0, False)
+        if cyl
+        else Obstacle("box", x, y, (hx, hy), yaw, wall > 0)
+        for x, y, hx, hy, yaw, cyl, wall, _ in plan.pieces.tolist()
+    )
 
 
 def _explicit_obstacle(o: ObstacleSpec) -> Obstacle:
@@ -344,19 +364,6 @@ def _check_explicit(layout: Layout, spec: ArenaSpec, inflate: float) -> None:
             f"{list(layout.start)} to target {list(layout.target)} (a {2 * inflate:.2f} m wide robot "
             f"corridor is needed); move, shorten or remove them"
         )
-
-
-def _clearance(points: np.ndarray, x, y, hx, hy, yaw, is_cyl) -> np.ndarray:
-    """Distance (metres) from each of ``points`` (P, 2) to each obstacle's outline
-    (N obstacles given as arrays): shape (P, N), negative inside."""
-    dx = points[:, 0:1] - x[None, :]
-    dy = points[:, 1:2] - y[None, :]
-    c, s = np.cos(yaw), np.sin(yaw)
-    qx = np.abs(c * dx + s * dy) - hx
-    qy = np.abs(-s * dx + c * dy) - hy
-    box = np.hypot(np.maximum(qx, 0), np.maximum(qy, 0)) + np.minimum(np.maximum(qx, qy), 0)
-    cyl = np.hypot(dx, dy) - hx
-    return np.where(is_cyl[None, :], cyl, box)
 
 
 def _place(
@@ -387,7 +394,7 @@ def _place(
         u = random_state.uniform(size=(todo.size, 2))
         x[todo] = ex[todo] + u[:, 0] * (width - 2 * ex[todo])
         y[todo] = ey[todo] + u[:, 1] * (height - 2 * ey[todo])
-        d = _clearance(points, x[todo], y[todo], hx[todo], hy[todo], yaw[todo], is_cyl[todo])
+        d = clearance(points, x[todo], y[todo], hx[todo], hy[todo], yaw[todo], is_cyl[todo])
         todo = todo[np.any(d < keep, axis=0)]
     return (x, y) if todo.size == 0 else None
 
@@ -463,8 +470,10 @@ def _random_moving(
     )
 
 
-def _failure_message(spec: ArenaSpec, blocked: int, unplaceable: int) -> str:
+def _failure_message(spec: ArenaSpec, family: str, blocked: int, unplaceable: int) -> str:
     what = f"{spec.static_obstacles} static obstacles"
+    if family != "random":
+        what += f" on a {family!r} floor plan (arena.floor_plan = {spec.floor_plan!r})"
     if spec.interior_walls:
         what += f" and {spec.interior_walls} interior walls"
     if spec.obstacles:
@@ -474,10 +483,12 @@ def _failure_message(spec: ArenaSpec, blocked: int, unplaceable: int) -> str:
         reasons.append(f"{blocked} blocked the path from start to target")
     if unplaceable:
         reasons.append(
-            f"{unplaceable} could not place every obstacle inside the arena and "
+            f"{unplaceable} could not place every obstacle or structure inside the arena and "
             f"{spec.clear_radius} m (arena.clear_radius) + robot radius away from start and target"
         )
     fixes = ["reduce arena.static_obstacles or arena.obstacle_size"]
+    if family != "random":
+        fixes.append("arena.floor_plan_count or arena.clear_radius, enlarge arena.size")
     if spec.interior_walls:
         fixes.append("arena.interior_walls or arena.interior_wall_length")
     fixes.append("or raise arena.max_tries")

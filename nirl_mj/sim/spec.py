@@ -20,13 +20,14 @@ from typing import Any
 
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.sim.drive import WHEEL_DISTANCE
+from nirl_mj.sim.floorplans import FAMILIES, slot_counts
 
 TASKS_DIR = Path(__file__).resolve().parents[2] / "tasks"
 
 LIMITS: dict[str, float] = {
     "arena_side": 1000.0,  # metres per side of the arena
     "grid_cells": 16_000_000,  # occupancy-grid cells, (width / grid_resolution) * (height / grid_resolution)
-    "obstacles": 1000,  # static + interior walls + moving + listed obstacles
+    "obstacles": 1000,  # static + interior walls + moving + listed obstacles + a floor plan's most
     "max_tries": 10_000,  # layout attempts
     "decision_period": 10.0,  # seconds
     "commands_per_decision": 10_000,  # decision_period / command_period
@@ -50,6 +51,12 @@ def _choices(*values: str):
     return {"choices": values}
 
 
+# Fields added after datasets and run records were written: left out of to_dict() at their
+# default, so the task records of earlier settings (and the digest of tests/test_digest.py)
+# stay byte-identical.
+_OMIT_DEFAULT = {"omit_default": True}
+
+
 @dataclass(frozen=True)
 class ObstacleSpec:
     """One explicitly placed obstacle.
@@ -66,7 +73,7 @@ class ObstacleSpec:
 
 @dataclass(frozen=True)
 class ArenaSpec:
-    """Procedural arena: border walls, static, wall-segment and moving obstacles."""
+    """Procedural arena: border walls, a floor plan, static, wall-segment and moving obstacles."""
 
     size: tuple[float, float] = (100.0, 100.0)
     start: tuple[float, float] = (10.0, 10.0)
@@ -91,6 +98,8 @@ class ArenaSpec:
     path_margin: float = field(default=0.1, metadata=_check(0.0))
     max_tries: int = field(default=50, metadata=_check(1))
     obstacles: tuple[ObstacleSpec, ...] = ()
+    floor_plan: str = field(default="random", metadata={**_choices(*FAMILIES), **_OMIT_DEFAULT})
+    floor_plan_count: int = field(default=0, metadata={**_check(0), **_OMIT_DEFAULT})
 
 
 @dataclass(frozen=True)
@@ -173,6 +182,8 @@ def _to_plain(obj: Any) -> Any:
         out = {}
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
+            if f.metadata.get("omit_default") and value == f.default:
+                continue
             if f.metadata.get("degrees") and isinstance(value, float):
                 value = math.degrees(value)
             out[f.name] = _to_plain(value)
@@ -299,8 +310,12 @@ def _check_arena(obj: ArenaSpec, where: str) -> None:
         "occupancy-grid cells; raise grid_resolution",
     )
     count = obj.static_obstacles + obj.interior_walls + obj.moving_obstacles + len(obj.obstacles)
+    count += sum(slot_counts(obj).values())
     _over(
-        count, "obstacles", f"{where}: static_obstacles + interior_walls + moving_obstacles + obstacles", ""
+        count,
+        "obstacles",
+        f"{where}: static_obstacles + interior_walls + moving_obstacles + obstacles + floor plan's most",
+        "",
     )
     _over(obj.max_tries, "max_tries", f"{where}.max_tries", "attempts")
     for name in ("start", "target"):
