@@ -68,7 +68,8 @@ def main() -> None:
     table = next((line for line in output.splitlines() if line.startswith("| NIRL")), "")
     body = (
         f"`nirl-mj run {' '.join(args.extra)}` (default task, all cores), from an empty directory: "
-        f"**{int(wall // 60)}:{int(wall % 60):02d} wall** ({wall:.0f} s), peak resident memory of the job and its workers "
+        f"**{int(wall // 60)}:{int(wall % 60):02d} wall** ({wall:.0f} s), "
+        "peak resident memory of the job and its workers "
         f"**{peak / 2**30:.2f} GB**. Targets: 5:00 and 2 GB.\n\nIts NIRL row: `{table}`"
     )
     print(body)
