@@ -19,7 +19,7 @@ from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import default_workers
-from nirl_mj.experiments.main_job import main_job
+from nirl_mj.experiments.main_job import main_experiment, main_job
 from nirl_mj.experiments.protocol import Execution
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experiments.subjects import Subject, reference_subject, run_subject
@@ -83,15 +83,11 @@ def cmd_run(args: argparse.Namespace) -> int:
                             succ=f"{m['success_rate']:.1f}")  # fmt: skip
 
     try:
+        experiment = main_experiment(spec, args.seed, args.variant, args.demos, args.expert, args.episodes,
+                                     args.tests)  # fmt: skip
         results = main_job(
             args.out,
-            spec,
-            seed=args.seed,
-            variant=args.variant,
-            demos=args.demos,
-            expert=args.expert,
-            episodes=args.episodes,
-            tests=args.tests,
+            experiment,
             workers=args.workers or default_workers(),
             resume=args.resume,
             log=lambda text: bar.write(text, file=sys.stderr),

@@ -2,8 +2,9 @@
 
 A run directory holds:
 
-- ``run.json``: the run record (task, learner config, seed, demonstrations, the arena
-  seeds used; when training has finished also the selection and ``train_seeds``);
+- ``run.json``: the run record (task, learner config, seed, demonstrations and their content
+  sha256, the arena seeds used; when training has finished also the selection and
+  ``train_seeds``);
 - ``metrics.jsonl``: one JSON object per finished iteration;
 - ``checkpoint.npz``: the whole learner state after the last finished iteration;
 - ``policy.npz``: the selected and the last network (``selected/W1``, ``last/W2``, ...);

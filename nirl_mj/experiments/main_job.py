@@ -93,19 +93,14 @@ def main_cell(job: RunJob, test_task: specs.TaskSpec, paths_file: str) -> dict:
 
 def main_job(
     out: str | Path,
-    task: specs.TaskSpec,
-    seed: int = 0,
-    variant: str = "default",
-    demos: int = 30,
-    expert: str = "sensor",
-    episodes: int | None = None,
-    tests: int = 100,
+    experiment: Experiment,
     workers: int = 1,
     resume: bool = False,
     log: Callable[[str], None] = print,
     on_metrics: Callable[[dict], None] | None = None,
 ) -> dict:
-    """Runs (or resumes) the main job in ``out``; returns the evaluation results by row name.
+    """Runs (or resumes) the main job ``experiment`` (:func:`main_experiment`) in ``out``; returns the
+    evaluation results by row name.
 
     ``on_metrics`` receives every training run's metrics rows (dicts) as iterations finish."""
     out = Path(out)
@@ -119,7 +114,7 @@ def main_job(
             "cannot be resumed; run the main job in a new --out (the old run still evaluates: "
             f"nirl-mj eval --run {out}/nirl)"
         )
-    experiment = main_experiment(task, seed, variant, demos, expert, episodes, tests)
+    task = experiment.task
     execution = Execution("serial" if workers == 1 else "local", workers, retries=0)
     out, jobs = prepare(experiment, out, execution, log)
     cells = [
@@ -136,11 +131,12 @@ def main_job(
     results = {ROWS[name]: report.results[name] for name in ROWS}
     paths = {ROWS[name]: load_dataset(out / "tests" / f"{name}.npz") for name in ROWS}
     write_text(
-        out / "results.json", json.dumps({"task": task.name, "seed": seed, "results": results}, indent=1)
+        out / "results.json",
+        json.dumps({"task": task.name, "seed": experiment.seed, "results": results}, indent=1),
     )
     nirl = RunDir(jobs["NIRL", 0].run_dir)
     demo_trajectories = load_dataset(out / "demos.npz")
-    write_report(out, nirl, task, variant, results, paths, len(demo_trajectories), expert)
+    write_report(out, nirl, experiment, results, paths, len(demo_trajectories))
     record_run(
         out / "run.rrd",
         demo_trajectories,
@@ -185,16 +181,10 @@ def follow_metrics(runs: list[RunDir], on_metrics: Callable[[dict], None] | None
 
 
 def write_report(
-    out: Path,
-    nirl: RunDir,
-    task: specs.TaskSpec,
-    variant: str,
-    results: dict,
-    paths: dict,
-    n_demos: int,
-    expert: str,
+    out: Path, nirl: RunDir, experiment: Experiment, results: dict, paths: dict, n_demos: int
 ) -> Path:
     """``report.md`` with the results table and the figures."""
+    task, variant, expert = experiment.task, experiment.methods[0].variant, experiment.expert
     training_plots(nirl.read_metrics(), out)
     paths_plot(out / "paths.png", {k: paths[k] for k in ("NIRL", "rule on phi(s)", "always forward")})
     record = nirl.read_record()
