@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from nirl_mj.data.trajectory import Trajectory
-from nirl_mj.learn import network
+from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.loop import IrlLoop, Transitions
 
@@ -31,6 +31,7 @@ def transitions(next_action: int, terminal: bool) -> Transitions:
     return Transitions(
         phi=PHI[None], action=np.array([2]), next_phi=PHI[None], next_action=np.array([next_action]),
         terminal=np.array([terminal]), terminal_value=np.array([0.0]), progress=np.zeros(1),
+        remaining=np.ones(1, int),
     )  # fmt: skip
 
 
@@ -66,3 +67,37 @@ def test_polyak_averaging_keeps_the_exponential_average_of_the_weights():
     plain = loop()
     policy, net = plain._kept_policy(w[0])
     assert policy is w[0] and net is plain.net  # off: the trained network itself
+
+
+def test_n_step_returns_stop_at_the_end_of_each_trajectory():
+    # two trajectories: rows 0-2 and row 3; future_t is what a one-step target adds after r_t
+    rewards = np.array([1.0, 2.0, 3.0, 4.0])
+    future = np.array([10.0, 20.0, 30.0, 40.0])
+    remaining = np.array([3, 2, 1, 1])
+    one = sarsa.n_step_returns(rewards, future, remaining, gamma=0.5, n=1)
+    np.testing.assert_allclose(one, [11.0, 22.0, 33.0, 44.0])  # r_t + future_t (eq. 14)
+    two = sarsa.n_step_returns(rewards, future, remaining, gamma=0.5, n=2)
+    # row 0: 1 + 0.5 * 2 + 0.5 * 20 = 12; row 1: 2 + 0.5 * 3 + 0.5 * 30 = 18.5; rows 2-3 end there
+    np.testing.assert_allclose(two, [12.0, 18.5, 33.0, 44.0])
+    three = sarsa.n_step_returns(rewards, future, remaining, gamma=0.5, n=3)
+    # row 0: 1 + 0.5 * 2 + 0.25 * 3 + 0.25 * 30 = 10.25
+    np.testing.assert_allclose(three, [10.25, 18.5, 33.0, 44.0])
+    with pytest.raises(ValueError, match="n >= 1"):
+        sarsa.n_step_returns(rewards, future, remaining, gamma=0.5, n=0)
+
+
+def test_n_step_targets_in_the_loop_follow_the_trajectory():
+    config = LearnerConfig.preset("default", reward_source="constant", bootstrap="q", alpha=1.0, gamma=0.5,
+                                  n_step=2)  # fmt: skip
+    learner = IrlLoop(config, demos(), seed=0)
+    q = network.q_values(learner.net, learner.demo_inputs[:1])[0]  # every state here is PHI
+    t = Transitions.concat([transitions(next_action=4, terminal=False)] * 2)
+    t.remaining[:] = [2, 1]
+    targets, _, _ = learner._targets(t)
+    # constant reward scaled into [0, 1 - gamma]: r = 0.25 (alpha = 1: the target is the return)
+    # row 0: 0.25 + 0.5 * 0.25 + 0.25 max Q(s''); row 1 ends its trajectory: 0.25 + 0.5 max Q(s')
+    np.testing.assert_allclose(targets, [0.375 + 0.25 * q.max(), 0.25 + 0.5 * q.max()])
+    t.terminal[1], t.terminal_value[1] = True, 0.5
+    targets, _, _ = learner._targets(t)
+    # row 0: 0.25 + 0.5 * 0.25 + 0.5 * 0.5 = 0.625; row 1: 0.25 + 0.5 = 0.75 (no bootstrap at the end)
+    np.testing.assert_allclose(targets, [0.625, 0.75])

@@ -68,6 +68,8 @@ class LoopConfig:
     # policy's values); and the hidden units of the network (paper: 10)
     bootstrap: str = "sarsa"
     hidden_units: int = 10
+    # n > 1: n-step targets, the next n rewards before the bootstrap (paper: 1, eq. 14)
+    n_step: int = 1
     # the kept policy: the trained network (0) or the exponential average of its weights with this
     # decay b in [0, 1), avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging)
     weight_averaging: float = 0.0
@@ -86,7 +88,7 @@ class LoopConfig:
                 weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
-                hidden_units=1)  # fmt: skip
+                hidden_units=1, n_step=1)  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -99,7 +99,8 @@ class Transitions:
     ``next_action`` is -1 where the next action is the greedy one (a timeout's
     last step); ``terminal`` rows do not bootstrap and take ``terminal_value``;
     ``progress`` is the travel towards the target in units of one decision's
-    travel (only the ``progress`` control reads it).
+    travel (only the ``progress`` control reads it); ``remaining`` counts the pairs from this
+    row to the end of its trajectory, this one included (n-step targets stop there).
     """
 
     phi: np.ndarray
@@ -109,12 +110,13 @@ class Transitions:
     terminal: np.ndarray
     terminal_value: np.ndarray
     progress: np.ndarray
+    remaining: np.ndarray
 
     @classmethod
     def empty(cls) -> Transitions:
         return cls(
             np.zeros((0, 16)), np.zeros(0, int), np.zeros((0, 16)), np.zeros(0, int), np.zeros(0, bool),
-            np.zeros(0), np.zeros(0),
+            np.zeros(0), np.zeros(0), np.zeros(0, int),
         )  # fmt: skip
 
     @classmethod
@@ -143,6 +145,7 @@ class Transitions:
                     terminal,
                     value,
                     progress,
+                    np.arange(n, 0, -1),
                 )
             )
         return cls.concat(parts) if parts else cls.empty()
@@ -240,7 +243,7 @@ class IrlLoop:
             q_next = np.where(t.next_action >= 0, q_next_all[rows, np.maximum(t.next_action, 0)], greedy_next)
         rewards, spread = self._rewards(t)
         targets, clipped = sarsa.sarsa_targets(
-            q_sa, rewards, q_next, t.terminal, c.alpha, c.gamma, t.terminal_value
+            q_sa, rewards, q_next, t.terminal, c.alpha, c.gamma, t.terminal_value, t.remaining, c.n_step
         )
         return targets, clipped, spread
 
@@ -379,6 +382,8 @@ class IrlLoop:
         network.set_weights(self.net, {k: np.array(state[f"net_{k}"]) for k in names})
         n_kept = len(self.scores)
         self.kept = [{k: np.array(state[f"kept_{k}"][i]) for k in names} for i in range(n_kept)]
+        if "replay_remaining" not in state:  # checkpoints from before n-step targets: one-step rows
+            state = {**state, "replay_remaining": np.ones(len(state["replay_action"]), dtype=np.int64)}
         replay = Transitions(*(np.array(state[f"replay_{f.name}"]) for f in dataclasses.fields(Transitions)))
         if self.reward_step is not None:
             prefix = "reward_step_"
