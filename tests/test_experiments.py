@@ -88,6 +88,21 @@ def test_shipped_experiments_load_full_and_quick():
     assert table1.identity() != quick.identity()
 
 
+EXPERIMENT_FILES = sorted(
+    path for path in (ROOT / "tasks").rglob("*.toml") if 'kind = "' in path.read_text(encoding="utf-8")
+)
+
+
+@pytest.mark.parametrize("path", EXPERIMENT_FILES, ids=lambda p: str(p.relative_to(ROOT / "tasks")))
+def test_every_shipped_experiment_file_loads_full_and_quick(path):
+    # the files whose figures docs/ cites must stay runnable as the code changes
+    for quick in (False, True):
+        experiment = load_experiment(path, quick=quick)
+        for method in experiment.methods:
+            if method.trains:
+                method.learner_config(experiment.config)  # a bad setting raises here
+
+
 @pytest.mark.parametrize(
     ("data", "message"),
     [

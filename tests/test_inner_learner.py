@@ -54,7 +54,7 @@ def test_the_network_width_is_a_setting():
 
 
 def test_polyak_averaging_keeps_the_exponential_average_of_the_weights():
-    learner = loop(weight_averaging=0.75)
+    learner = loop(weight_averaging=0.75, hidden_units=10)
     w = [{"W1": np.full((10, 17), float(i)), "W2": np.full((6, 11), 2.0 * i)} for i in (4, 8, 16)]
     kept = []
     for weights in w:

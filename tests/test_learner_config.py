@@ -59,3 +59,13 @@ def test_bad_settings_are_refused_with_the_field_and_what_it_accepts():
         checked_changes({"episodes": "abc"}, "--config")
     with pytest.raises(ValueError, match="unknown learner setting 'variant'"):
         checked_changes({"variant": "paper"}, "--config", exclude=("variant",))
+
+
+def test_a_record_without_the_newer_fields_loads_as_it_was_trained():
+    from nirl_mj.learn.config import RECORD_FALLBACKS
+
+    flat = LearnerConfig.preset("default").to_dict()
+    old = {k: v for k, v in flat.items() if k not in RECORD_FALLBACKS}
+    loaded = LearnerConfig.from_record(old).to_dict()
+    assert {k: loaded[k] for k in RECORD_FALLBACKS} == RECORD_FALLBACKS
+    assert LearnerConfig.from_record(flat) == LearnerConfig.preset("default")  # a full record is itself

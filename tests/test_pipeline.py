@@ -14,7 +14,7 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
     assert main([*args, "--json"]) == 0
     last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert set(last) == {"NIRL", "always forward", "rule on phi(s)", "behaviour cloning",
-                         "control: SARSA on progress", "control: constant reward"}  # fmt: skip
+                         "control: progress reward", "control: constant reward"}  # fmt: skip
     results = json.loads((out / "results.json").read_text())["results"]
     assert all(r["tests"] == 2 for r in results.values())
     for name in (

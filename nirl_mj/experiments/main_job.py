@@ -45,7 +45,7 @@ ROWS = {
     "forward": "always forward",
     "rule": "rule on phi(s)",
     "BC": "behaviour cloning",
-    "control-progress": "control: SARSA on progress",
+    "control-progress": "control: progress reward",
     "control-constant": "control: constant reward",
 }
 """Method name (cells, run directories) -> its row in the results and the report, in report order."""

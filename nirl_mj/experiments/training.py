@@ -39,7 +39,7 @@ Policy = Callable[[np.ndarray], int]
 def run_config(record: dict[str, Any]) -> LearnerConfig:
     """The learner config of a run record."""
     try:
-        return LearnerConfig.from_dict(record["config"])
+        return LearnerConfig.from_record(record["config"])
     except (KeyError, TypeError, ValueError) as exc:
         raise RunError(f"the run record's learner config is not readable ({exc})") from None
 

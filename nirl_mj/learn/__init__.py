@@ -6,5 +6,6 @@
 - ``mmp``: discounted feature sums, the expert's feature expectations (eq. 11)
   and the model-free maximum-margin-planning objective (eq. 13) minimised by
   projected subgradient descent with ||theta||_2 <= 1 (Algorithm 1, line 5).
-- ``sarsa``: the on-policy SARSA targets (eq. 14) the network is fitted to.
+- ``sarsa``: the value targets the network is fitted to: on-policy SARSA (eq. 14),
+  and the n-step returns of the default variant.
 """

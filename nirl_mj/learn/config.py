@@ -39,7 +39,7 @@ class LoopConfig:
     method: str = "nirl"  # the reward step: "nirl" (max margin, eq. 11-13) or a baseline (learn/methods.py)
     episodes: int = 60  # ~2-4 min per run on one core (planar training drive)
     trajectories_per_episode: int = 10
-    gamma: float = 0.65  # eq. 14
+    gamma: float = 0.9  # eq. 14 and eq. 11 (paper: 0.65, about three decisions ahead)
     alpha: float = 0.8  # eq. 14
     eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
     eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
@@ -65,11 +65,11 @@ class LoopConfig:
     reward_source: str = "learned"  # "progress" / "constant": the controls (a known reward, no step)
     # the inner learner (docs/ALGORITHM.md, "Inner learner"): what a target bootstraps from, Q(s', a')
     # of the next pair taken ("sarsa", eq. 14) or max_a' Q(s', a') ("q": Q-learning, the greedy
-    # policy's values); and the hidden units of the network (paper: 10)
-    bootstrap: str = "sarsa"
-    hidden_units: int = 10
-    # n > 1: n-step targets, the next n rewards before the bootstrap (paper: 1, eq. 14)
-    n_step: int = 1
+    # policy's values); the hidden units of the network (paper: 10); n-step targets, the next n
+    # rewards before the bootstrap (paper: 1, eq. 14)
+    bootstrap: str = "q"
+    hidden_units: int = 32
+    n_step: int = 3
     # the kept policy: the trained network (0) or the exponential average of its weights with this
     # decay b in [0, 1), avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging)
     weight_averaging: float = 0.0
@@ -175,6 +175,10 @@ PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
     # The algorithm as the paper writes it (docs/ALGORITHM.md lists what "default" changes, and why).
     "paper": {
+        "gamma": 0.65,
+        "bootstrap": "sarsa",
+        "hidden_units": 10,
+        "n_step": 1,
         "eta": 10.0,
         "eta_final": 10.0,
         "reward_features": "paper",
@@ -193,6 +197,14 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 VARIANTS = tuple(PRESETS)
+RECORD_FALLBACKS: dict[str, Any] = {
+    "bootstrap": "sarsa",
+    "hidden_units": 10,
+    "weight_averaging": 0.0,
+    "n_step": 1,
+}
+"""Fields added after run records were first written, with the value that reproduces what those
+runs did (:meth:`LearnerConfig.from_record`)."""
 
 
 def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
@@ -268,6 +280,13 @@ class LearnerConfig:
             return config_cls(**{k: v for k, v in flat.items() if owners[k] is config_cls})
 
         return cls(build(LoopConfig), {m: build(c) for m, c in STEP_CONFIGS.items()})
+
+    @classmethod
+    def from_record(cls, flat: Mapping[str, Any]) -> LearnerConfig:
+        """The config a run record (``run.json``) was trained with: as :meth:`from_dict`, but a field
+        the record lacks takes its value from before the field existed (:data:`RECORD_FALLBACKS`),
+        not today's default, so runs written by older versions load as they were trained."""
+        return cls.from_dict({**RECORD_FALLBACKS, **flat})
 
     def to_dict(self) -> dict[str, Any]:
         """The flat form stored in run records: the loop's fields, then every step's."""

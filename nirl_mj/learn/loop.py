@@ -6,9 +6,10 @@ Each iteration ("episode" in the paper):
    trajectories in fresh training arenas (line 4);
 2. find theta by projected subgradient on the max-margin objective (eq. 12-13,
    line 5); the minimum is the margin t; stop if t <= epsilon (lines 6-8);
-3. rewards r_theta = theta^T f (eq. 2), SARSA targets (eq. 14) and
-   backpropagation on the cross-entropy cost (eq. 15) give the next network
-   (lines 9-10).
+3. rewards r_theta = theta^T f (eq. 2), value targets (eq. 14: SARSA in the
+   paper variant; n-step Q-learning targets in the default, docs/ALGORITHM.md)
+   and backpropagation on the cross-entropy cost (eq. 15) give the next
+   network (lines 9-10).
 
 Every policy is kept; the one reported is chosen by the configured rule
 (paper: highest prediction accuracy on the demonstrations). What the
@@ -17,8 +18,8 @@ never reads the task's reward or success signal: only the demonstrations, and
 its own trajectories' collisions and arrivals (terminal states).
 
 ``reward_source`` swaps the learned reward for a known one, which gives the
-controls: ``"progress"`` (SARSA on the progress towards the target: the
-ceiling of the inner loop) and ``"constant"`` (what surviving alone earns).
+controls: ``"progress"`` (the inner learner on the progress towards the
+target: the ceiling of the inner loop) and ``"constant"`` (what surviving alone earns).
 """
 
 from __future__ import annotations
