@@ -1,4 +1,5 @@
-"""On-policy SARSA targets for the neural policy iteration (paper section IV-C, eq. 14).
+"""Value targets for the neural policy iteration: on-policy SARSA (paper section IV-C, eq. 14),
+and the n-step returns of the default variant (docs/ALGORITHM.md, "The default's inner learner").
 
 Q-values are the network's outputs in (0, 1) (eq. 7), so the targets are
 clipped to [0, 1]; the share that needed clipping is returned so callers can
@@ -52,17 +53,18 @@ def sarsa_targets(
 ) -> tuple[np.ndarray, float]:
     """SARSA targets Qhat(s_t, a_t) (eq. 14), clipped to [0, 1].
 
-        q_sa: (N,) Q(s_t, a_t) of the taken actions; rewards: (N,) r_theta(s_t, a_t)
-        (eq. 2, Q units); q_next: (N,) Q(s_{t+1}, a_{t+1}) of the next pair taken by
-        the policy (ignored, may be NaN, where terminal); terminal: (N,) bool, True
-        where s_{t+1} ends the episode and there is no bootstrap; terminal_values:
-        (N,) value used instead of gamma Q(s', a') at terminal pairs (default 0;
-        read only where terminal). alpha: learning rate in [0, 1]; gamma: discount.
-    n_step > 1 replaces r + gamma Q' by the n-step return (:func:`n_step_returns`),
-    which needs ``remaining`` (N,), the pairs left in each row's trajectory.
+    q_sa: (N,) Q(s_t, a_t) of the taken actions; rewards: (N,) r_theta(s_t, a_t)
+    (eq. 2, Q units); q_next: (N,) Q(s_{t+1}, a_{t+1}) of the next pair taken by
+    the policy (or max_a Q(s_{t+1}, a) for Q-learning targets; ignored, may be
+    NaN, where terminal); terminal: (N,) bool, True where s_{t+1} ends the
+    episode and there is no bootstrap; terminal_values: (N,) value used instead
+    of gamma Q(s', a') at terminal pairs (default 0; read only where terminal).
+    alpha: learning rate in [0, 1]; gamma: discount. n_step > 1 replaces
+    r + gamma Q' by the n-step return (:func:`n_step_returns`), which needs
+    ``remaining`` (N,), the pairs left in each row's trajectory.
 
-        Returns (targets (N,) float64 in [0, 1], share of the N raw targets outside
-        [0, 1] that were clipped; 0.0 for N = 0).
+    Returns (targets (N,) float64 in [0, 1], share of the N raw targets outside
+    [0, 1] that were clipped; 0.0 for N = 0).
     """
     q_sa = np.asarray(q_sa, dtype=np.float64)
     rewards = np.asarray(rewards, dtype=np.float64)
