@@ -101,3 +101,22 @@ def test_n_step_targets_in_the_loop_follow_the_trajectory():
     targets, _, _ = learner._targets(t)
     # row 0: 0.25 + 0.5 * 0.25 + 0.5 * 0.5 = 0.625; row 1: 0.25 + 0.5 = 0.75 (no bootstrap at the end)
     np.testing.assert_allclose(targets, [0.625, 0.75])
+
+
+def test_the_reward_ceiling_scales_rewards_into_a_fraction_of_one_minus_gamma():
+    # progress in [-1, 1] (the control's known range) maps to [0, ceiling (1 - gamma)]
+    learner = IrlLoop(
+        LearnerConfig.preset("default", reward_source="progress", gamma=0.9, reward_ceiling=0.5), demos(), 0
+    )
+    t = transitions(next_action=-1, terminal=False)
+    for progress, expected in ((-1.0, 0.0), (0.0, 0.025), (1.0, 0.05)):
+        t.progress = np.array([progress])
+        rewards, spread = learner._rewards(t)
+        assert rewards[0] == pytest.approx(expected) and spread == 2.0
+    # so the best reward forever is worth 0.05 / (1 - 0.9) = 0.5: half an arrival (1)
+
+
+@pytest.mark.parametrize("ceiling", [0.0, 1.5, float("nan")])
+def test_the_reward_ceiling_is_a_fraction_in_zero_one(ceiling):
+    with pytest.raises(ValueError, match="reward_ceiling"):
+        LearnerConfig.preset("default", reward_ceiling=ceiling)

@@ -48,7 +48,11 @@ class LoopConfig:
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
     epsilon: float = float("-inf")  # stop when the reward step's margin t <= epsilon (paper: 0)
-    reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
+    reward_scaling: bool = True  # rewards mapped into [0, reward_ceiling (1 - gamma)]
+    # with scaling: what the best reward earned forever is worth, sum_k gamma^k r_max, against an
+    # arrival's terminal value. At 1 (= terminal_arrival_value) circling on the best reward is worth
+    # as much as arriving; below it, arriving sooner is strictly better (docs/ALGORITHM.md)
+    reward_ceiling: float = 1.0
     terminal_arrival_value: float = 1.0  # value of reaching the target (a terminal state)
     net_step: float = 0.4  # sigma_2 of eq. 15
     net_l2: float = 1e-3  # lambda_2 of eq. 15
@@ -84,7 +88,7 @@ class LoopConfig:
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
-                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
+                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"), reward_ceiling=(0.0, 1.0, "(]"),
                 weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
@@ -202,6 +206,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "hidden_units": 10,
     "weight_averaging": 0.0,
     "n_step": 1,
+    "reward_ceiling": 1.0,
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""

@@ -229,7 +229,7 @@ class IrlLoop:
         spread = hi - lo
         if not c.reward_scaling:
             return raw, spread
-        return (1.0 - c.gamma) * (raw - lo) / max(spread, 1e-12), spread
+        return c.reward_ceiling * (1.0 - c.gamma) * (raw - lo) / max(spread, 1e-12), spread
 
     def _targets(self, t: Transitions) -> tuple[np.ndarray, float, float]:
         c = self.loop
