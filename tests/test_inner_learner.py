@@ -120,3 +120,13 @@ def test_the_reward_ceiling_scales_rewards_into_a_fraction_of_one_minus_gamma():
 def test_the_reward_ceiling_is_a_fraction_in_zero_one(ceiling):
     with pytest.raises(ValueError, match="reward_ceiling"):
         LearnerConfig.preset("default", reward_ceiling=ceiling)
+
+
+def test_exploration_is_per_unit_of_the_reward_ceiling():
+    # eta 5 -> 60 over 3 iterations: 5, 32.5, 60; with a ceiling of 0.5 the Q spread halves, eta doubles
+    learner = loop(episodes=3, eta=5.0, eta_final=60.0, reward_ceiling=0.5)
+    assert learner.eta() == pytest.approx(10.0)
+    learner.iteration = 1
+    assert learner.eta() == pytest.approx(65.0)
+    learner.iteration = 2
+    assert learner.eta() == pytest.approx(120.0)

@@ -263,9 +263,12 @@ class IrlLoop:
     # -- one iteration of Algorithm 1 -------------------------------------------------
 
     def eta(self) -> float:
+        """This iteration's Boltzmann parameter (eq. 8): ``eta`` -> ``eta_final`` linearly, per unit of
+        ``reward_ceiling``: the ceiling shrinks the spread of Q between actions by that factor, and
+        exploration should not grow with it."""
         c = self.loop
         frac = self.iteration / max(c.episodes - 1, 1)
-        return c.eta + (c.eta_final - c.eta) * frac
+        return (c.eta + (c.eta_final - c.eta) * frac) / c.reward_ceiling
 
     def step(self, rollouts: Rollouts, train_seeds: list[int], validate: Callable | None = None) -> Metrics:
         """One iteration: rollouts in the arenas of ``train_seeds``, theta, the next network."""
