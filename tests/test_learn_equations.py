@@ -358,7 +358,7 @@ def test_sarsa_targets_eq14():
     assert share0 == 0.0
 
 
-@pytest.mark.parametrize("kind", ["paper", "extended"])
+@pytest.mark.parametrize("kind", ["paper", "extended", "bearing"])
 def test_reward_is_theta_dot_f_eq2(kind):
     """r_theta(s, a) = theta^T f(s, a) (eq. 2) with f of eq. 4-5 (or the extended map)."""
     from nirl_mj.learn.reward import RewardModel, all_action_features, pair_features
@@ -369,3 +369,21 @@ def test_reward_is_theta_dot_f_eq2(kind):
     model = RewardModel(rng.normal(size=all_action_features(phi[:1], kind).shape[-1]), kind)
     np.testing.assert_allclose(model.reward(phi, actions), pair_features(phi, actions, kind) @ model.theta)
     np.testing.assert_allclose(model.rewards_all_actions(phi), all_action_features(phi, kind) @ model.theta)
+
+
+def test_bearing_features_hold_the_target_sectors_centre_as_cos_and_sin():
+    from nirl_mj.learn.reward import block_names, state_reward_features
+
+    # D = 7, 0, ..., V = 3 (the sector centred 80 degrees to the left), I = 1, U = 1 on S1
+    phi = np.array([7, 0, 0, 0, 0, 0, 0, 3, 1, 1, 0, 0, 0, 0, 0, 0], dtype=float)
+    block = state_reward_features(phi[None], "bearing")[0]
+    names = block_names("bearing")
+    assert block.shape == (27,) and len(names) == 27
+    by_name = dict(zip(names, block, strict=True))
+    assert by_name["D_S1/7"] == 1.0 and by_name["V=3"] == 1.0 and by_name["V=1"] == 0.0
+    assert by_name["cos_V"] == pytest.approx(np.cos(np.deg2rad(80.0)))
+    assert by_name["sin_V"] == pytest.approx(np.sin(np.deg2rad(80.0)))
+    assert by_name["I"] == 1.0 and by_name["U_S1"] == 1.0 and by_name["const"] == 1.0
+    # the extended block is the same without the two bearing values
+    extended = state_reward_features(phi[None], "extended")[0]
+    np.testing.assert_array_equal(np.delete(block, [16, 17]), extended)

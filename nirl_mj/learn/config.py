@@ -43,7 +43,7 @@ class LoopConfig:
     alpha: float = 0.8  # eq. 14
     eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
     eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
-    reward_features: str = "extended"  # "paper" (eq. 4-5) or "extended"
+    reward_features: str = "extended"  # "paper" (eq. 4-5), "extended" or "bearing" (learn/reward.py)
     margin_loss: float = (
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
@@ -82,7 +82,7 @@ class LoopConfig:
     def __post_init__(self) -> None:
         _choice("method", self.method, METHODS)
         _choice("reward_source", self.reward_source, REWARD_SOURCES)
-        _choice("reward_features", self.reward_features, ("paper", "extended"))
+        _choice("reward_features", self.reward_features, ("paper", "extended", "bearing"))
         _choice("selection", self.selection, ("validation", "demo_accuracy"))
         _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))

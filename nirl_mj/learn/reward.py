@@ -1,13 +1,18 @@
 """The recovered reward r_theta(s, a) = theta^T f(s, a) (paper eq. 2, 4-5), saved with names.
 
-Two feature maps for the reward (the policy network always sees phi(s)):
+Three feature maps for the reward (the policy network always sees phi(s)):
 
 - ``"paper"``: f(s, a) of eq. 4-5, phi(s) in the block of action a, 96 values;
 - ``"extended"``: per action block [D/7 (7), V one-hot (9), I, U (7), 1] = 25
   values, 150 in all. Scaling D into [0, 1] makes ||theta|| <= 1 meaningful for
   every component; one-hot V lets a linear reward prefer "turn towards the
   target's sector"; the constant lets it prefer an action as such
-  (../shared/docs/algorithms-notes.md, "Reward features").
+  (../shared/docs/algorithms-notes.md, "Reward features");
+- ``"bearing"``: the extended block with the target's bearing as (cos, sin) of its sector's
+  centre after one-hot V, 27 values, 162 in all. One-hot V leaves a sector the expert never
+  had behind it (V = 4..7: 10 of 3583 demonstrated pairs) without a learned reward; (cos, sin)
+  carry "turn towards the target" learned in the sectors the expert did see over to them
+  (docs/ALGORITHM.md, "Bearing features").
 """
 
 from __future__ import annotations
@@ -17,23 +22,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS, SENSOR_ANGLES
 
-REWARD_FEATURES = ("paper", "extended")
+REWARD_FEATURES = ("paper", "extended", "bearing")
 
 _D, _V, _I, _U = slice(0, 7), 7, 8, slice(9, 16)
 
 
 def state_reward_features(phi: np.ndarray, kind: str) -> np.ndarray:
-    """phi (..., 16) -> per-action block (..., 16) for "paper" or (..., 25) for "extended"."""
+    """phi (..., 16) -> per-action block (..., 16) for "paper", (..., 25) for "extended" or (..., 27)
+    for "bearing"."""
     phi = np.asarray(phi, dtype=np.float64)
     if kind == "paper":
         return phi
-    if kind != "extended":
+    if kind not in REWARD_FEATURES:
         raise ValueError(f"unknown reward features {kind!r}; accepted: {', '.join(REWARD_FEATURES)}")
     region = np.eye(N_SENSORS)[phi[..., _V].astype(int) - 1]
+    parts = [phi[..., _D] / 7.0, region]
+    if kind == "bearing":
+        centre = SENSOR_ANGLES[phi[..., _V].astype(int) - 1]  # radians, counter-clockwise from the front
+        parts += [np.cos(centre)[..., None], np.sin(centre)[..., None]]
     ones = np.ones((*phi.shape[:-1], 1))
-    return np.concatenate([phi[..., _D] / 7.0, region, phi[..., _I, None], phi[..., _U], ones], axis=-1)
+    return np.concatenate([*parts, phi[..., _I, None], phi[..., _U], ones], axis=-1)
 
 
 def block_names(kind: str) -> tuple[str, ...]:
@@ -42,7 +52,8 @@ def block_names(kind: str) -> tuple[str, ...]:
         return FEATURE_NAMES
     d = [n for n in FEATURE_NAMES if n.startswith("D_")]
     u = [n for n in FEATURE_NAMES if n.startswith("U_")]
-    return (*(f"{n}/7" for n in d), *(f"V={v}" for v in range(1, 10)), "I", *u, "const")
+    bearing = ("cos_V", "sin_V") if kind == "bearing" else ()
+    return (*(f"{n}/7" for n in d), *(f"V={v}" for v in range(1, 10)), *bearing, "I", *u, "const")
 
 
 def reward_feature_names(kind: str) -> tuple[str, ...]:
