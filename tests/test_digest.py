@@ -9,6 +9,12 @@ default inner learner changed (3-step Q-learning targets, 32 hidden units,
 gamma 0.9; the paper variant's checkpoint was checked bit-identical across that
 change); a change that alters any number changes it. Update ``PINNED`` only
 for a change that is meant to alter results, and say so in the commit.
+
+The bits also depend on the platform (CPU, BLAS kernels, library builds): on a new
+machine the digest of 44e7b06 itself came out different (8ae27ff... instead of
+ee3e5c9...), and was re-pinned on 2026-11-24 after checking that 44e7b06 and the
+new code give the same digest there. If this test fails, first run it at the last
+commit it passed at: if that fails too, the platform changed, not the results.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ TINY_LEARNER = ["episodes=3", "trajectories_per_episode=2", "validation_arenas=2
                 "replay_episodes=2"]  # fmt: skip
 METHODS = {"default": [], "paper": ["--variant", "paper"], "al": ["--config", "method=\"al\""],
            "re": ["--config", "method=\"re\""], "scirl": ["--config", "method=\"scirl\""]}  # fmt: skip
-PINNED = "ee3e5c988aecdab3edb773f78afe021ed826ac93b45489b81b7beb71493f10d0"
+PINNED = "8ae27ffcdbf61caf6a14bf21482858268c4aa19731cc5848264275e145675ba8"
 
 
 def _arrays_digest(h, path: Path) -> None:

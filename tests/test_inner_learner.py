@@ -130,3 +130,17 @@ def test_exploration_is_per_unit_of_the_reward_ceiling():
     assert learner.eta() == pytest.approx(65.0)
     learner.iteration = 2
     assert learner.eta() == pytest.approx(120.0)
+
+
+def test_bearing_inputs_put_the_sectors_centre_as_cos_and_sin_in_vs_place():
+    from nirl_mj.learn.inputs import NetworkInputs
+
+    phi = np.array([[7, 0, 0, 0, 0, 0, 0, 5, 1, 1, 0, 0, 0, 0, 0, 0]], dtype=float)  # V = 5: 160 degrees
+    x = NetworkInputs(scaled=True, bearing=True)(phi)
+    assert x.shape == (1, 17) and NetworkInputs(bearing=True).size == 17
+    np.testing.assert_allclose(x[0, :7], [1, 0, 0, 0, 0, 0, 0])
+    np.testing.assert_allclose(x[0, 7:9], [np.cos(np.deg2rad(160.0)), np.sin(np.deg2rad(160.0))])
+    np.testing.assert_allclose(x[0, 9:], [1, 1, 0, 0, 0, 0, 0, 0])
+    np.testing.assert_allclose(NetworkInputs(scaled=True)(phi)[0, 7], 5 / 9)  # the default code: V/9
+    learner = loop(input_bearing=True)
+    assert network.get_weights(learner.net)["W1"].shape == (32, 18)

@@ -27,6 +27,7 @@ from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network
 from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.loop import IrlLoop, Metrics, greedy_policy
 from nirl_mj.learn.reward import RewardModel
 from nirl_mj.sim import spec as specs
@@ -77,9 +78,10 @@ def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Po
 
 
 def _greedy(weights: dict[str, np.ndarray], config: LearnerConfig) -> Policy:
-    net = network.QNetwork(n_hidden=config.loop.hidden_units, seed=0)
+    inputs = NetworkInputs.of(config.loop)
+    net = network.QNetwork(inputs.size, config.loop.hidden_units, seed=0)
     network.set_weights(net, weights)
-    return greedy_policy(net, config.loop.input_scaling)
+    return greedy_policy(net, inputs)
 
 
 def _rollouts(env: dm_env.Environment) -> Callable[[Agent, Sequence[int]], list[Trajectory]]:
@@ -145,7 +147,7 @@ def train(
     def validate(net: network.QNetwork) -> float | None:
         if loop.selection != "validation" or learner.iteration % loop.validate_every:
             return None
-        return evaluate(env, greedy_policy(net, loop.input_scaling), first_round)[0]["success_rate"]
+        return evaluate(env, greedy_policy(net, NetworkInputs.of(loop)), first_round)[0]["success_rate"]
 
     k = loop.trajectories_per_episode
     while learner.iteration < loop.episodes and not learner.stopped:

@@ -13,7 +13,8 @@ import numpy as np
 from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.learn import network
-from nirl_mj.learn.loop import demonstrated_pairs, greedy_policy, network_inputs
+from nirl_mj.learn.inputs import NetworkInputs
+from nirl_mj.learn.loop import demonstrated_pairs, greedy_policy
 
 
 def behaviour_cloning(
@@ -26,9 +27,10 @@ def behaviour_cloning(
 ):
     """Returns the greedy policy on phi(s) of a network trained to predict the demonstrated actions."""
     phi, actions = demonstrated_pairs(demos)
-    x = np.repeat(network_inputs(phi, scaled), N_ACTIONS, axis=0)
+    inputs = NetworkInputs(scaled)
+    x = np.repeat(inputs(phi), N_ACTIONS, axis=0)
     outputs = np.tile(np.arange(N_ACTIONS), len(actions))
     targets = (outputs == np.repeat(actions, N_ACTIONS)).astype(np.float64)
     net = network.QNetwork(seed=seed)
     network.minibatch_epochs(net, x, outputs, targets, l2, step, epochs, 64, np.random.default_rng(seed))
-    return greedy_policy(net, scaled)
+    return greedy_policy(net, inputs)

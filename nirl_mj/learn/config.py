@@ -60,6 +60,7 @@ class LoopConfig:
     net_epochs: int = 4  # full-batch steps (no replay) or minibatch epochs (replay)
     batch_size: int = 64
     input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
+    input_bearing: bool = False  # network input (cos, sin) of the sector centre in V's place (inputs.py)
     selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
     validation_arenas: int = 20
     validate_every: int = 5
@@ -88,8 +89,8 @@ class LoopConfig:
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
-                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"), reward_ceiling=(0.0, 1.0, "(]"),
-                weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
+                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
+                reward_ceiling=(0.0, 1.0, "(]"), weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
                 hidden_units=1, n_step=1)  # fmt: skip
@@ -207,6 +208,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "weight_averaging": 0.0,
     "n_step": 1,
     "reward_ceiling": 1.0,
+    "input_bearing": False,
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""

@@ -37,26 +37,19 @@ from nirl_mj.data.outcomes import outcome_rates
 from nirl_mj.data.trajectory import Trajectory, stack_pairs
 from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
 from nirl_mj.learn.reward import RewardModel, all_action_features
-
-_INPUT_SCALE = np.array([7.0] * 7 + [9.0] + [1.0] * 8)
-
-
-def network_inputs(phi: np.ndarray, scaled: bool) -> np.ndarray:
-    """What the network sees: phi (N, 16), or with D/7 and V/9 so every input is in [0, 1]."""
-    x = np.asarray(phi, dtype=np.float64)
-    return x / _INPUT_SCALE if scaled else x
 
 
 class NetworkAgent:
     """The neural policy as an agent: Boltzmann (eq. 8) while training, greedy (eq. 9) after."""
 
     def __init__(
-        self, net: network.QNetwork, scaled: bool, eta: float | None, rng: np.random.Generator
+        self, net: network.QNetwork, inputs: NetworkInputs, eta: float | None, rng: np.random.Generator
     ) -> None:
-        self.net, self.scaled, self.eta, self.rng = net, scaled, eta, rng
+        self.net, self.inputs, self.eta, self.rng = net, inputs, eta, rng
         self.kind = "nirl"
 
     def reset(self, env: Any, timestep: Any) -> None:
@@ -65,7 +58,7 @@ class NetworkAgent:
 
     def act(self, timestep: Any) -> int:
         """The action for a dm_env timestep (reads ``timestep.observation["features"]``, phi(s))."""
-        x = network_inputs(timestep.observation["features"][None], self.scaled)
+        x = self.inputs(timestep.observation["features"][None])
         q = network.q_values(self.net, x, self._weights)[0]
         if self.eta is None:
             return int(network.greedy_actions(q[None])[0])
@@ -83,11 +76,11 @@ def demonstrated_pairs(demos: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]
     return phi, actions
 
 
-def greedy_policy(net: network.QNetwork, scaled: bool) -> Callable[[np.ndarray], int]:
+def greedy_policy(net: network.QNetwork, inputs: NetworkInputs) -> Callable[[np.ndarray], int]:
     """The trained policy on phi(s) (eq. 9), as ``nirl_mj.experts.policies`` policies are."""
 
     def policy(phi: np.ndarray) -> int:
-        q = network.q_values(net, network_inputs(np.asarray(phi)[None], scaled))
+        q = network.q_values(net, inputs(np.asarray(phi)[None]))
         return int(network.greedy_actions(q)[0])
 
     return policy
@@ -199,9 +192,10 @@ class IrlLoop:
         self.seed = seed
         self.rng = np.random.default_rng([seed, 7])
         torch.set_num_threads(1)  # tiny network: threads only add nondeterminism
-        self.net = network.QNetwork(n_hidden=config.loop.hidden_units, seed=seed)
+        self.inputs = NetworkInputs.of(config.loop)
+        self.net = network.QNetwork(self.inputs.size, config.loop.hidden_units, seed=seed)
         self.demo_phi, self.demo_actions = demonstrated_pairs(demos)
-        self.demo_inputs = network_inputs(self.demo_phi, config.loop.input_scaling)
+        self.demo_inputs = self.inputs(self.demo_phi)
         self.reward_step = reward_step(config, demos) if config.loop.reward_source == "learned" else None
         n_theta = all_action_features(self.demo_phi[:1], config.loop.reward_features).shape[-1]
         self.theta = np.zeros(n_theta)
@@ -233,8 +227,8 @@ class IrlLoop:
 
     def _targets(self, t: Transitions) -> tuple[np.ndarray, float, float]:
         c = self.loop
-        q = network.q_values(self.net, network_inputs(t.phi, c.input_scaling))
-        q_next_all = network.q_values(self.net, network_inputs(t.next_phi, c.input_scaling))
+        q = network.q_values(self.net, self.inputs(t.phi))
+        q_next_all = network.q_values(self.net, self.inputs(t.next_phi))
         q_sa = q[np.arange(len(t)), t.action]
         rows = np.arange(len(t))
         greedy_next = q_next_all.max(axis=1)
@@ -251,7 +245,7 @@ class IrlLoop:
     def _fit(self, t: Transitions) -> float:
         c = self.loop
         targets, self._clipped, self._spread = self._targets(t)
-        x = network_inputs(t.phi, c.input_scaling)
+        x = self.inputs(t.phi)
         if c.replay_episodes == 0:  # the paper: full-batch steps on this episode's pairs
             for _ in range(max(c.net_epochs, 1)):
                 cost = network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)
@@ -274,10 +268,10 @@ class IrlLoop:
         """One iteration: rollouts in the arenas of ``train_seeds``, theta, the next network."""
         c = self.loop
         eta = self.eta()
-        agent = NetworkAgent(self.net, c.input_scaling, eta, self.rng)
+        agent = NetworkAgent(self.net, self.inputs, eta, self.rng)
         trajectories = rollouts(agent, train_seeds)  # line 4
         before = network.get_weights(self.net)
-        visited = np.concatenate([network_inputs(t.features[:-1], c.input_scaling) for t in trajectories])
+        visited = np.concatenate([self.inputs(t.features[:-1]) for t in trajectories])
         entropy = network.policy_entropy(network.q_values(self.net, visited), eta)
 
         margin = float("nan")
@@ -286,7 +280,7 @@ class IrlLoop:
             # the policy that drove the rollouts (RE-IRL's importance weights read it)
             drove = (before["W1"], before["W2"])
             context = RolloutContext(
-                eta, lambda phi: network.q_values(self.net, network_inputs(phi, c.input_scaling), drove)
+                eta, lambda phi: network.q_values(self.net, self.inputs(phi), drove)
             )
             self.theta, margin = self.reward_step.update(
                 self.theta, trajectories, self.iteration, greedy, context
@@ -344,7 +338,7 @@ class IrlLoop:
             return after, self.net
         previous = self.kept[-1] if self.kept else after
         kept = {k: b * previous[k] + (1.0 - b) * after[k] for k in after}
-        net = network.QNetwork(n_hidden=self.loop.hidden_units, seed=0)
+        net = network.QNetwork(self.inputs.size, self.loop.hidden_units, seed=0)
         network.set_weights(net, kept)
         return kept, net
 
