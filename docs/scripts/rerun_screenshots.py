@@ -86,7 +86,8 @@ def screenshot(rrd: Path, out: Path, width: int, height: int, wait: float, ports
             socket_url = next(t["webSocketDebuggerUrl"] for t in targets if t["type"] == "page")
             time.sleep(wait)  # the viewer loads its wasm, the recording, then draws every view
             with connect(socket_url, max_size=None, open_timeout=30) as ws:
-                ws.send(json.dumps({"id": 1, "method": "Page.captureScreenshot", "params": {"format": "png"}}))
+                request = {"id": 1, "method": "Page.captureScreenshot", "params": {"format": "png"}}
+                ws.send(json.dumps(request))
                 while True:
                     reply = json.loads(ws.recv(timeout=120))
                     if reply.get("id") == 1:
@@ -108,14 +109,15 @@ def main() -> None:
     parser.add_argument("--run", type=Path, default=Path("runs/main"), help="a finished `nirl-mj run` --out")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "images")
     parser.add_argument("--wait", type=float, default=120.0, help="seconds for the viewer to load and draw")
-    parser.add_argument("--size", default="1600x1000", help="browser window, WIDTHxHEIGHT pixels")
+    parser.add_argument("--size", default="1920x1080", help="browser window, WIDTHxHEIGHT pixels")
     parser.add_argument("--ports", default="9190,9976", help="web viewer and gRPC ports")
     args = parser.parse_args()
     if shutil.which("chromium") is None:
         sys.exit("error: chromium not found; install it (Debian: apt-get install -y chromium)")
     width, height = (int(v) for v in args.size.split("x"))
     ports = tuple(int(p) for p in args.ports.split(","))
-    nirl = RunDir(args.run / "runs" / "NIRL" / str(json.loads((args.run / "experiment.json").read_text())["seed"]))
+    seed = json.loads((args.run / "experiment.json").read_text())["seed"]
+    nirl = RunDir(args.run / "runs" / "NIRL" / str(seed))  # the main job's one NIRL run
     with tempfile.TemporaryDirectory() as tmp:
         for name, focus in SHOTS.items():
             rrd = record_main_job(args.run, nirl, Path(tmp) / f"{Path(name).stem}.rrd", focus=focus)

@@ -82,7 +82,7 @@ def _looking_north(size: tuple[float, float]) -> rrb.EyeControls3D:
     """A camera south of the arena, 45 degrees down onto its centre, the whole arena in sight in a
     view of the layout's width/height (the arena's diagonal is the widest part seen)."""
     w, h = size
-    reach = 1.1 * math.hypot(w, h) / 2 / (_EPISODE_ASPECT * math.tan(_FOV / 2))
+    reach = 0.8 * math.hypot(w, h) / 2 / (_EPISODE_ASPECT * math.tan(_FOV / 2))
     angle = math.radians(45.0)
     return rrb.EyeControls3D(
         position=(w / 2, h / 2 - reach * math.cos(angle), reach * math.sin(angle)),
@@ -114,7 +114,7 @@ def episode_tab(scene: Scene) -> rrb.Container:
     plots: list[Any] = [
         _plot(f"{p}/features/{g.name}", g.title, legend=len(g.colours) > 1) for g in FEATURE_GROUPS
     ]
-    shares = [3 if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]  # room for the legends
+    shares = [4 if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]  # room for the legends
     if scene.reward:
         plots.append(_plot(f"{p}/reward", "r_theta(s_t, a_t)", legend=False))
         shares.append(2)
