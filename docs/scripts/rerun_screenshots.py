@@ -17,7 +17,9 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -64,7 +66,7 @@ def screenshot(rrd: Path, out: Path, width: int, height: int, wait: float, ports
         server = subprocess.Popen(
             [str(Path(sys.executable).with_name("rerun")), "--serve-web", "--web-viewer-port", str(web),
              "--port", str(grpc), str(rrd)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
         )  # fmt: skip
         browser = None
         try:
@@ -73,7 +75,7 @@ def screenshot(rrd: Path, out: Path, width: int, height: int, wait: float, ports
             browser = subprocess.Popen(
                 ["chromium", *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
                  "--remote-debugging-port=0", page],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
             )  # fmt: skip
             port_file = Path(profile) / "DevToolsActivePort"
             end = time.monotonic() + 60
@@ -98,9 +100,11 @@ def screenshot(rrd: Path, out: Path, width: int, height: int, wait: float, ports
                 # Modest files: a palette of 256 colours loses nothing a reader needs in a UI.
                 Image.open(target.tmp).convert("RGB").quantize(256).save(target.tmp, optimize=True)
         finally:
+            # Each was started in a session of its own: end it with its children (the `rerun`
+            # script runs the viewer binary as a child, chromium its renderers).
             for process in (browser, server):
                 if process is not None:
-                    process.terminate()
+                    os.killpg(process.pid, signal.SIGTERM)
                     process.wait(timeout=30)
 
 

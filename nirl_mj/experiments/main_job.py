@@ -142,12 +142,14 @@ def main_job(
 
 
 def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: str | None = None) -> Path:
-    """Writes the recording of the finished main job in ``out`` to ``target``: its demonstrations,
-    the training scalars and reward of its NIRL run ``nirl``, the first test episodes of every
-    method (``tests/``) and the reward map in the first test arena (the one ``eval/nirl/000`` drove
-    in). ``focus``: the episode the layout opens on (:func:`nirl_mj.inspect.blueprint.default_blueprint`)."""
+    """Writes the recording of the main job in ``out`` to ``target``: its demonstrations, the training
+    scalars and reward of its NIRL run ``nirl``, the first test episodes of every method tested so
+    far (``tests/``: all of them once the job has finished) and the reward map in the first test
+    arena (the one ``eval/nirl/000`` drove in). ``focus``: the episode the layout opens on
+    (:func:`nirl_mj.inspect.blueprint.default_blueprint`)."""
     out = Path(out)
-    paths = {ROWS[name]: load_dataset(out / "tests" / f"{name}.npz") for name in ROWS}
+    files = {ROWS[name]: out / "tests" / f"{name}.npz" for name in ROWS}
+    paths = {row: load_dataset(file) for row, file in files.items() if file.is_file()}
     first_test = paths[ROWS["NIRL"]][0]
     return record_run(
         target,

@@ -110,16 +110,16 @@ def episode_tab(scene: Scene) -> rrb.Container:
         rrb.Spatial3DView(origin=p, name=f"{scene.path} 3-D", eye_controls=_looking_north(scene.size)),
         rrb.Spatial3DView(origin=p, name=f"{scene.path} from above",
                           eye_controls=_looking_down((0.0, 0.0), scene.size, _EPISODE_ASPECT)),
+        rrb.TextLogView(origin=f"{p}/action", name="actions"),
+        row_shares=[4, 4, 2],
     )  # fmt: skip
     plots: list[Any] = [
         _plot(f"{p}/features/{g.name}", g.title, legend=len(g.colours) > 1) for g in FEATURE_GROUPS
     ]
-    shares = [4 if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]  # room for the legends
+    shares = [len(g.colours) if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]  # room for the legends
     if scene.reward:
         plots.append(_plot(f"{p}/reward", "r_theta(s_t, a_t)", legend=False))
         shares.append(2)
-    plots.append(rrb.TextLogView(origin=f"{p}/action", name="actions"))
-    shares.append(2)
     return rrb.Horizontal(space, rrb.Vertical(*plots, row_shares=shares), name=scene.path.rsplit("/", 1)[-1])
 
 

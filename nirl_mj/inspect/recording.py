@@ -300,13 +300,13 @@ def log_episode(
     reward: RewardModel | None = None,
 ) -> Layout:
     """:func:`log_layout` of the trajectory's regenerated arena under ``path/arena`` and
-    :func:`log_trajectory` under ``path``, and a label with the episode's name, outcome and length
-    north of the arena (``path/label``). Returns the layout."""
+    :func:`log_trajectory` under ``path``, and the episode's index (``007``) centred north of the
+    arena (``path/label``: short, so that the labels of a group's tiled arenas do not overlap; the
+    path's colour tells the outcome). Returns the layout."""
     layout = layout_of(trajectory)
     height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
     name = path.rsplit("/", 1)[-1]
-    label = rr.Points3D([(0.0, layout.size[1] + 4.0, 0.0)], radii=[0.0],
-                        labels=[f"{name}: {trajectory.outcome}, {len(trajectory)} steps"])  # fmt: skip
+    label = rr.Points3D([(layout.size[0] / 2, layout.size[1] + 4.0, 0.0)], radii=[0.0], labels=[name])
     rec.log(f"{path}/label", label, static=True)
     log_layout(rec, f"{path}/arena", layout, height)
     log_trajectory(rec, path, trajectory, reward, layout)
