@@ -7,7 +7,7 @@ through the DevTools protocol. Nothing is clicked: what is saved is what opens. 
 the views that the recording itself says would be empty (``layout_check.views_without_data``).
 
 Needs the Debian package ``chromium`` (``apt-get install -y chromium``) and the ``websockets``
-module (in the project's venv). Writes docs/images/rerun_*.png by default.
+module (installed with mujoco). Writes docs/images/rerun_*.png by default.
 
     nice -n 10 .venv/bin/python docs/scripts/rerun_screenshots.py --run runs/main [--wait 120]
 """
