@@ -67,10 +67,17 @@ def test_run_recording_matches_the_episode(tmp_path, episode):
     n = len(trajectory) + 1
     for prefix in ("/demos/000", "/eval/nirl_default/000"):
         for name in ("arena/obstacles", "arena/cylinders", "arena/border", "arena/start_target", "path",
-                     "robot/footprint", "robot/heading", "reward_path"):  # fmt: skip
+                     "robot/footprint", "robot/heading", "robot/marker", "reward_path", "label"):  # fmt: skip
             assert all(c.is_static for c in chunks[f"{prefix}/{name}"]), name
-        for name, rows in (("robot", n), ("robot/rays", n), ("features", n), ("arena/moving", n),
-                           ("action", n - 1), ("reward", n - 1)):  # fmt: skip
+        states = (
+            "robot",
+            "robot/rays",
+            "features/danger",
+            "features/target",
+            "features/flags",
+            "arena/moving",
+        )
+        for name, rows in [(name, n) for name in states] + [("action", n - 1), ("reward", n - 1)]:
             temporal = [c for c in chunks[f"{prefix}/{name}"] if not c.is_static]
             assert sum(c.num_rows for c in temporal) == rows, name
             assert all(set(c.timeline_names) == {"step", "time"} for c in temporal), name
@@ -78,8 +85,13 @@ def test_run_recording_matches_the_episode(tmp_path, episode):
         np.testing.assert_allclose(translation[:, :2], trajectory.poses[:, :2], atol=1e-4)
         times = column(chunks[f"{prefix}/robot"], "time")
         assert [t.total_seconds() for t in times] == pytest.approx(trajectory.times.tolist())
-        features = np.array(column(chunks[f"{prefix}/features"], "Scalars:scalars"))
-        np.testing.assert_array_equal(features, trajectory.features)
+        # phi(s) in three entities by scale: D (7), V, then I and U (8).
+        parts = [
+            np.array(column(chunks[f"{prefix}/features/{g}"], "Scalars:scalars"))
+            for g in ("danger", "target", "flags")
+        ]
+        assert [p.shape[1] for p in parts] == [7, 1, 8]
+        np.testing.assert_array_equal(np.hstack(parts), trajectory.features)
         actions = [r[0] for r in column(chunks[f"{prefix}/action"], "TextLog:text")]
         assert actions == [ACTION_NAMES[a] for a in trajectory.actions]
         rewards = np.array([r[0] for r in column(chunks[f"{prefix}/reward"], "Scalars:scalars")])
@@ -96,7 +108,10 @@ def test_run_recording_matches_the_episode(tmp_path, episode):
         )
         assert not np.allclose(centres[0], centres[-1])  # they move
     margin = chunks["/training/margin"]
-    assert sum(c.num_rows for c in margin) == 4 and all("episode" in c.timeline_names for c in margin)
+    temporal = [c for c in margin if not c.is_static]
+    assert sum(c.num_rows for c in temporal) == 4
+    # On ``step`` too (at the iteration), the timeline the layout opens on.
+    assert all({"episode", "step"} <= set(c.timeline_names) for c in temporal)
     assert column(margin, "Scalars:scalars", "episode") == [[1.0], [0.5], [1.0 / 3], [0.25]]
     for name in (*ACTION_NAMES, "grid", "values", "info"):
         assert chunks[f"/reward_map/{name}"][0].is_static, name
@@ -141,7 +156,7 @@ def test_train_and_eval_write_recordings(tmp_path, capsys):
     assert main(train) == 0
     chunks = read_rrd(tmp_path / "train.rrd")
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
-    assert sum(c.num_rows for c in chunks["/training/margin"]) == len(rows) == 2
+    assert sum(c.num_rows for c in chunks["/training/margin"] if not c.is_static) == len(rows) == 2
     assert "/demos/001/reward" in chunks and "/reward_map/grid" in chunks
     evaluation = ["eval", "--run", str(run), "--tests", "2", "--quiet", "--rerun", str(tmp_path / "eval.rrd")]
     assert main(evaluation) == 0

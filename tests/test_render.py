@@ -13,8 +13,10 @@ from nirl_mj.cli import main
 from nirl_mj.experts.policies import PolicyAgent, rule_policy
 from nirl_mj.inspect.video import (
     RenderError,
+    arena_box,
     check_frame,
     draw_overlay,
+    panel_box,
     paths_montage,
     record_video,
     snapshot_strip,
@@ -56,28 +58,45 @@ def test_video_frames_size_motion_and_timing(tmp_path, camera, overlay):
 
 
 def test_overlay_draws_text_and_danger_bars():
-    frame = np.full((120, 160, 3), 128, np.uint8)
+    frame = np.full((480, 640, 3), 128, np.uint8)
     phi = np.array([0, 1, 2, 3, 5, 6, 7, 3, 1, 0, 0, 0, 0, 0, 0, 0], np.float32)
-    drawn = draw_overlay(frame, ["t 1.00 s  step 2", "forward"], phi)
+    drawn = draw_overlay(frame, ["t 1.00 s", "step 2", "forward"], phi)
     assert drawn.shape == frame.shape
     changed = np.abs(drawn.astype(int) - frame).max(axis=-1) > 0
-    assert changed[:20, :40].any() and changed[-20:, :40].any()  # text top left, bars bottom left
-    assert not changed[:, 120:].any()  # the rest of the frame is untouched
+    assert changed[:20, :40].any()  # one block in the top-left corner
+    assert not changed[-150:, :].any()  # the bottom left, where a top view has the start, stays clear
+    assert not changed[:, 200:].any()
     bars = draw_overlay(frame, [], phi)
     assert not np.array_equal(bars, draw_overlay(frame, [], np.zeros(16, np.float32)))
+
+
+def test_top_view_keeps_the_arena_clear_of_overlays():
+    # The square arena fills a square of the frame, the overlay panel takes the rest.
+    assert arena_box("top", 640, 480) == (0, 0, 480, 480) and panel_box("top", 640, 480) == (480, 0, 640, 480)
+    assert panel_box("top", 480, 640) == (0, 480, 480, 640)
+    assert panel_box("top", 480, 480) is None and panel_box("chase", 640, 480) is None
+    assert arena_box("chase", 640, 480) == (0, 0, 640, 480)
+    frame = np.zeros((480, 640, 3), np.uint8)
+    phi = np.full(16, 7, np.float32)
+    drawn = draw_overlay(frame, ["t 12.50 s", "step 25", "right60"], phi, panel_box("top", 640, 480))
+    changed = drawn.max(axis=-1) > 0
+    assert not changed[:, :480].any()  # nothing on the arena
+    columns = np.flatnonzero(changed.any(axis=0))
+    assert columns.min() >= 480 and columns.max() < 640  # text and all seven bars fit the panel
+    assert changed[:, 480:].sum() > 500
 
 
 def test_snapshot_strip_and_paths_montage(tmp_path):
     env = make_env(tiny_task(moving=3))
     strip = snapshot_strip(env, rule_policy, 1, tmp_path / "strip.png", snapshots=3, width=160, height=120)
     image = iio.imread(strip)
-    assert image.shape == (120, 3 * 160 + 2 * 4, 3)
+    assert image.shape == (120, 3 * 120 + 2 * 4, 3)  # a top view's frame: the arena's square
     assert image.std() > 20  # not blank
-    tiles = [image[:, k * 164 : k * 164 + 160].astype(int) for k in range(3)]
+    tiles = [image[:, k * 124 : k * 124 + 120].astype(int) for k in range(3)]
     assert np.abs(tiles[0] - tiles[2]).mean() > 1.0  # time passes between snapshots
     montage = paths_montage(env, rule_policy, [1, 2], tmp_path / "paths.png", width=160, height=120)
     image = iio.imread(montage)
-    assert image.shape == (120, 2 * 160 + 4, 3) and image.std() > 20
+    assert image.shape == (120, 2 * 120 + 4, 3) and image.std() > 20
     assert sorted(p.name for p in tmp_path.iterdir()) == ["paths.png", "strip.png"]
 
 

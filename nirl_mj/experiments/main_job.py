@@ -137,15 +137,29 @@ def main_job(
     nirl = RunDir(jobs["NIRL", 0].run_dir)
     demo_trajectories = load_dataset(out / "demos.npz")
     write_report(out, nirl, experiment, results, paths, len(demo_trajectories))
-    record_run(
-        out / "run.rrd",
-        demo_trajectories,
+    record_main_job(out, nirl, out / "run.rrd")
+    return results
+
+
+def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: str | None = None) -> Path:
+    """Writes the recording of the main job in ``out`` to ``target``: its demonstrations, the training
+    scalars and reward of its NIRL run ``nirl``, the first test episodes of every method tested so
+    far (``tests/``: all of them once the job has finished) and the reward map in the first test
+    arena (the one ``eval/nirl/000`` drove in). ``focus``: the episode the layout opens on
+    (:func:`nirl_mj.inspect.blueprint.default_blueprint`)."""
+    out = Path(out)
+    files = {ROWS[name]: out / "tests" / f"{name}.npz" for name in ROWS}
+    paths = {row: load_dataset(file) for row, file in files.items() if file.is_file()}
+    first_test = paths[ROWS["NIRL"]][0]
+    return record_run(
+        target,
+        load_dataset(out / "demos.npz"),
         nirl.read_metrics(),
         paths,
         reward=RewardModel.from_dict(nirl.read_reward()),
-        map_arena=(task, jobs["NIRL", 0].test_seeds[0]),
+        map_arena=(specs.from_dict(first_test.task, "test episode task"), first_test.arena_seed),
+        focus=focus,
     )
-    return results
 
 
 @contextmanager

@@ -31,15 +31,23 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 
 from nirl_mj.data.atomic import AtomicFile
-from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
+from nirl_mj.data.features import ACTION_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
 from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.inspect.blueprint import TIMELINE, Scene, default_blueprint, tile_offsets
+from nirl_mj.inspect.styles import (
+    FEATURE_GROUPS,
+    REWARD_COLOUR,
+    TRAINING_KEYS,
+    feature_names,
+    log_series_style,
+    log_training_styles,
+)
 from nirl_mj.sim.drive import BODY_RADIUS
 from nirl_mj.sim.layout import Layout, advance, generate_layout
 from nirl_mj.sim.spec import from_dict
@@ -53,6 +61,7 @@ _OBSTACLE = (150, 150, 160)
 _WALL = (90, 90, 100)
 _MOVING = (255, 140, 26)
 _ROBOT = (230, 230, 230)
+_MARKER_RGB = (20, 20, 20)  # the robot's marker and heading: dark on the light floor and paths
 _PATH = {
     "target": (40, 170, 60),
     "collision": (220, 50, 40),
@@ -65,10 +74,13 @@ DANGER_COLOURS = np.array(
 )  # fmt: skip
 """RGB of danger levels 0 (nothing in range: green) .. 7 (closest: dark red), shape (8, 3)."""
 _RAY_HEIGHT = 0.06  # m: the sensors' height on the robot
-TRAINING_KEYS = ("margin", "cost", "dw1", "dw2", "demo_accuracy", "demo_balanced_accuracy", "success_rate",
-                 "collision_rate", "timeout_rate", "validation_success", "policy_entropy", "reward_spread",
-                 "clipped_share", "eta", "theta_norm", "reward_prefers_forward")  # fmt: skip
-"""Training scalars logged under ``training/<key>`` when a metrics row has them."""
+# Widths in screen points (Rerun reads a negative radius so): the robot, its rays and its path stay
+# visible whether a view shows one arena or thirty, and the path never hides the robot.
+_PATH_WIDTH = rr.Radius.ui_points(2.0)
+_REWARD_PATH_WIDTH = rr.Radius.ui_points(1.2)
+_RAY_WIDTH = rr.Radius.ui_points(1.5)
+_MARKER = rr.Radius.ui_points(6.0)
+_HEADING = 2.0  # m: the heading arrow's length, past the 0.225 m body so that it shows from afar
 
 
 def layout_of(trajectory: Trajectory) -> Layout:
@@ -156,7 +168,7 @@ def moving_positions(layout: Layout, times: np.ndarray) -> np.ndarray:
 
 def _indexes(trajectory: Trajectory, rows: int) -> list[rr.TimeColumn]:
     return [
-        rr.TimeColumn("step", sequence=np.arange(rows)),
+        rr.TimeColumn(TIMELINE, sequence=np.arange(rows)),
         rr.TimeColumn("time", duration=np.asarray(trajectory.times[:rows], dtype=np.float64)),
     ]
 
@@ -192,9 +204,11 @@ def log_trajectory(
     reward: RewardModel | None = None,
     layout: Layout | None = None,
 ) -> None:
-    """Logs one episode under ``path``: the path and the robot's footprint (static); per decision
-    on the ``step`` and ``time`` timelines the robot's pose, its sensor rays, the action, phi(s),
-    r_theta(s_t, a_t) when ``reward`` is given, and the moving obstacles of ``layout``.
+    """Logs one episode under ``path``: the path and the robot's footprint and marker (static); per
+    decision on the ``step`` and ``time`` timelines the robot's pose, its sensor rays, the action,
+    phi(s) (``features/danger``, ``features/target``, ``features/flags``: one entity per scale),
+    r_theta(s_t, a_t) when ``reward`` is given, and the moving obstacles of ``layout``. Series are
+    named and coloured once (static ``SeriesLines``).
 
     Row counts: T + 1 (states) for the pose, rays, features and moving obstacles; T for the
     action and the reward. Columnar (``send_columns``): a few ms per episode.
@@ -204,7 +218,7 @@ def log_trajectory(
     points = np.column_stack([poses[:, :2], np.full(n, 0.1)])
     rec.log(
         f"{path}/path",
-        rr.LineStrips3D([points], colors=[_PATH[trajectory.outcome]], radii=[0.1]),
+        rr.LineStrips3D([points], colors=[_PATH[trajectory.outcome]], radii=_PATH_WIDTH),
         static=True,
     )
     rec.log(
@@ -212,11 +226,15 @@ def log_trajectory(
         rr.Cylinders3D(centers=[(0, 0, 0.15)], radii=[BODY_RADIUS], lengths=[0.3], colors=[_ROBOT]),
         static=True,
     )
+    # Above the path (z 0.1) and the rays, so that a view from above shows the robot on top.
+    marker = rr.Points3D([(0, 0, 0.6)], colors=[_MARKER_RGB], radii=_MARKER)
+    rec.log(f"{path}/robot/marker", marker, static=True)
     rec.log(
         f"{path}/robot/heading",
-        rr.Arrows3D(origins=[(0, 0, 0.3)], vectors=[(0.6, 0, 0)], colors=[(40, 90, 220)]),
+        rr.Arrows3D(origins=[(0, 0, 0.6)], vectors=[(_HEADING, 0, 0)], colors=[_MARKER_RGB],
+                    radii=rr.Radius.ui_points(2.0)),
         static=True,
-    )
+    )  # fmt: skip
     states = _indexes(trajectory, n)
     rec.send_columns(
         f"{path}/robot",
@@ -231,15 +249,14 @@ def log_trajectory(
         f"{path}/robot/rays",
         indexes=states,
         columns=rr.LineStrips3D.columns(
-            strips=strips.reshape(-1, 2, 3), colors=colours.reshape(-1, 3), radii=np.full(n * k, 0.03)
+            strips=strips.reshape(-1, 2, 3), colors=colours.reshape(-1, 3), radii=np.full(n * k, _RAY_WIDTH)
         ).partition(np.full(n, k)),
     )
-    rec.log(f"{path}/features", rr.SeriesLines(names=list(FEATURE_NAMES)), static=True)
-    rec.send_columns(
-        f"{path}/features",
-        indexes=states,
-        columns=rr.Scalars.columns(scalars=np.asarray(trajectory.features, dtype=np.float64)),
-    )
+    features = np.asarray(trajectory.features, dtype=np.float64)
+    for group in FEATURE_GROUPS:
+        entity = f"{path}/features/{group.name}"
+        log_series_style(rec, entity, feature_names(group), group.colours)
+        rec.send_columns(entity, indexes=states, columns=rr.Scalars.columns(scalars=features[:, group.index]))
     if len(trajectory):
         decisions = _indexes(trajectory, n - 1)
         names = np.asarray(ACTION_NAMES)[trajectory.actions]
@@ -247,11 +264,12 @@ def log_trajectory(
         if reward is not None:
             phi, actions = trajectory.pairs()
             r = np.asarray(reward.reward(phi, actions), dtype=np.float64)
+            log_series_style(rec, f"{path}/reward", ["r_theta"], (REWARD_COLOUR,))
             rec.send_columns(f"{path}/reward", indexes=decisions, columns=rr.Scalars.columns(scalars=r))
             segments = np.stack([points[:-1], points[1:]], axis=1) + (0, 0, 0.05)
             rec.log(
                 f"{path}/reward_path",
-                rr.LineStrips3D(segments, colors=_colour_scale(r), radii=[0.15]),
+                rr.LineStrips3D(segments, colors=_colour_scale(r), radii=_REWARD_PATH_WIDTH),
                 static=True,
             )
     if layout is not None and layout.moving:
@@ -276,26 +294,42 @@ def _log_moving(
 
 
 def log_episode(
-    rec: rr.RecordingStream, path: str, trajectory: Trajectory, reward: RewardModel | None = None
-) -> None:
+    rec: rr.RecordingStream,
+    path: str,
+    trajectory: Trajectory,
+    reward: RewardModel | None = None,
+) -> Layout:
     """:func:`log_layout` of the trajectory's regenerated arena under ``path/arena`` and
-    :func:`log_trajectory` under ``path``."""
+    :func:`log_trajectory` under ``path``, and the episode's index (``007``) centred north of the
+    arena (``path/label``: short, so that the labels of a group's tiled arenas do not overlap; the
+    path's colour tells the outcome). Returns the layout."""
     layout = layout_of(trajectory)
     height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
+    name = path.rsplit("/", 1)[-1]
+    label = rr.Points3D([(layout.size[0] / 2, layout.size[1] + 4.0, 0.0)], radii=[0.0], labels=[name])
+    rec.log(f"{path}/label", label, static=True)
     log_layout(rec, f"{path}/arena", layout, height)
     log_trajectory(rec, path, trajectory, reward, layout)
+    return layout
 
 
-def log_training(rec: rr.RecordingStream, metrics: Sequence[dict], prefix: str = "training") -> None:
-    """Training scalars (margin, cost, weight changes, accuracies, success; :data:`TRAINING_KEYS`)
-    on the ``episode`` timeline, one row per metrics dict (its ``episode`` is the index)."""
+def log_training(rec: rr.RecordingStream, metrics: Sequence[dict], prefix: str = "training") -> set[str]:
+    """Training scalars (margin, cost, weight changes, accuracies, success; :data:`TRAINING_KEYS`),
+    one row per metrics dict at its ``episode`` (the NIRL iteration) on the ``episode`` timeline
+    and on :data:`TIMELINE` (``step``), where the default layout shows them next to the episodes.
+    Returns the keys logged."""
+    logged = set()
     for row in metrics:
-        rec.set_time("episode", sequence=int(row["episode"]))
+        iteration = int(row["episode"])
+        rec.set_time("episode", sequence=iteration)
+        rec.set_time(TIMELINE, sequence=iteration)
         for key in TRAINING_KEYS:
             value = row.get(key)
             if value is not None and np.isfinite(value):
                 rec.log(f"{prefix}/{key}", rr.Scalars(float(value)))
+                logged.add(key)
     rec.reset_time()
+    return logged
 
 
 def log_reward_map(
@@ -337,72 +371,43 @@ def log_reward_map(
     return values
 
 
-def default_blueprint(
-    episodes: Sequence[str], reward_map: bool = False, training: bool = False
-) -> rrb.Blueprint:
-    """The layout a recording opens with: a 3-D tab per episode in ``episodes`` (entity paths,
-    e.g. ``demos/000``) with the first episode's actions, phi(s) and r_theta next to it; the
-    training curves and the reward map in tabs on the right."""
-    first = episodes[0] if episodes else "demos/000"
-    scene = rrb.Tabs(*[rrb.Spatial3DView(origin=f"/{e}", name=e) for e in episodes] or [rrb.Spatial3DView()])
-    series = [
-        rrb.TimeSeriesView(origin=f"/{first}/features", name=f"phi(s) {first}"),
-        rrb.TimeSeriesView(origin=f"/{first}/reward", name=f"r_theta {first}"),
-    ]
-    right: list[Any] = []
-    if training:
-        right.append(
-            rrb.Tabs(
-                rrb.TimeSeriesView(origin="/training", name="margin, cost",
-                                   contents=["/training/margin", "/training/cost"]),
-                rrb.TimeSeriesView(origin="/training", name="weight changes",
-                                   contents=["/training/dw1", "/training/dw2"]),
-                rrb.TimeSeriesView(origin="/training", name="accuracy, success",
-                                   contents=["/training/demo_accuracy", "/training/demo_balanced_accuracy",
-                                             "/training/success_rate", "/training/validation_success"]),
-                rrb.TimeSeriesView(origin="/training", name="all training scalars"),
-            )
-        )  # fmt: skip
-    if reward_map:
-        right.append(
-            rrb.Tabs(
-                rrb.Spatial2DView(origin="/reward_map/grid", name="reward map"),
-                *[rrb.Spatial2DView(origin=f"/reward_map/{a}", name=f"r_theta {a}") for a in ACTION_NAMES],
-                rrb.TextDocumentView(origin="/reward_map/info", name="about the map"),
-            )
-        )
-    left = rrb.Vertical(scene, rrb.TextLogView(origin=f"/{first}/action", name=f"actions {first}"),
-                        row_shares=[4, 1])  # fmt: skip
-    columns = [left, rrb.Vertical(*series)] + ([rrb.Vertical(*right)] if right else [])
-    return rrb.Blueprint(rrb.Horizontal(*columns), collapse_panels=True)
-
-
 class Recording(AtomicFile):
     """A ``.rrd`` file written atomically: data goes to a temporary file next to ``path`` and
     :meth:`close` moves it to ``path`` (after sending the default blueprint); :meth:`abort`, or
     an exception inside a ``with`` block, deletes it. ``rec`` is the open
     :class:`rerun.RecordingStream`."""
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike, focus: str | None = None) -> None:
         super().__init__(path)
+        self.focus = focus  # the episode whose tabs the layout opens on (None: the first)
         try:
             self.rec = rr.RecordingStream("nirl-mj")
             self.rec.save(self.tmp)
         except BaseException:
             super().discard()
             raise
-        self.episodes: list[str] = []  # entity paths of logged episodes, in order
+        self.scenes: list[Scene] = []  # logged episodes, in order, as the layout places them
         self.logged_iterations: set[int] = set()  # ``episode`` values of logged metrics rows
+        self.training_keys: set[str] = set()  # training scalars logged (and styled) so far
         self.has_reward_map = False
+
+    @property
+    def episodes(self) -> list[str]:
+        """Entity paths of the logged episodes, in order."""
+        return [scene.path for scene in self.scenes]
 
     def episode(self, path: str, trajectory: Trajectory, reward: RewardModel | None = None) -> None:
         """Logs one episode (:func:`log_episode`) under ``path``."""
-        log_episode(self.rec, path, trajectory, reward)
-        self.episodes.append(path)
+        layout = log_episode(self.rec, path, trajectory, reward)
+        self.scenes.append(Scene(path, layout.size, reward is not None and len(trajectory) > 0))
 
     def training(self, metrics: Sequence[dict]) -> None:
-        """Logs metrics rows (:func:`log_training`); cheap enough to call every iteration."""
-        log_training(self.rec, metrics)
+        """Logs metrics rows (:func:`log_training`), and each series' style the first time it
+        appears; cheap enough to call every iteration."""
+        new = log_training(self.rec, metrics) - self.training_keys
+        if new:
+            log_training_styles(self.rec, new)
+            self.training_keys |= new
         self.logged_iterations.update(int(row["episode"]) for row in metrics)
 
     def reward_map(
@@ -416,12 +421,15 @@ class Recording(AtomicFile):
         self.has_reward_map = True
 
     def commit(self) -> Path:
-        """Sends the blueprint, flushes and moves the file into place; returns its path."""
+        """Places each episode in its group's view (a static transform of its entity: a view of the
+        episode itself stays in the arena's frame), sends the blueprint, flushes and moves the file
+        into place; returns its path."""
         try:
-            tabs = _first_of_each_group(self.episodes)
-            self.rec.send_blueprint(
-                default_blueprint(tabs, self.has_reward_map, bool(self.logged_iterations)), make_active=True
-            )
+            for path, (x, y) in tile_offsets(self.scenes).items():
+                self.rec.log(path, rr.Transform3D(translation=(x, y, 0.0)), static=True)
+            keys = sorted(self.training_keys)
+            blueprint = default_blueprint(self.scenes, keys, self.has_reward_map, self.focus)
+            self.rec.send_blueprint(blueprint, make_active=True)
             self.rec.flush()
         except BaseException:
             self.discard()
@@ -436,17 +444,6 @@ class Recording(AtomicFile):
 
     close = commit
     abort = discard
-
-
-def _first_of_each_group(episodes: Sequence[str], limit: int = 8) -> list[str]:
-    """The first episode of each group (``demos``, ``eval/<policy>``), at most ``limit``."""
-    seen, out = set(), []
-    for e in episodes:
-        group = e.rsplit("/", 1)[0]
-        if group not in seen:
-            seen.add(group)
-            out.append(e)
-    return out[:limit]
 
 
 def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str | os.PathLike) -> Path:
@@ -512,13 +509,15 @@ def record_run(
     max_paths: int = 10,
     reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
+    focus: str | None = None,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
     scalars, up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``),
     r_theta along every path when ``reward`` is given, and with
-    it the reward map in ``map_arena`` (task, arena seed) if given."""
+    it the reward map in ``map_arena`` (task, arena seed) if given; the layout opens on the
+    episode ``focus`` (an entity path; None: the first)."""
     model = reward
-    with Recording(path) as recording:
+    with Recording(path, focus) as recording:
         for i, trajectory in enumerate(demos):
             recording.episode(f"demos/{i:03d}", trajectory, model)
         if metrics:

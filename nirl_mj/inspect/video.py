@@ -20,10 +20,14 @@ step (up to 10 ms old): recomputing them would change what the task's arrival
 check reads. Setting the hook runs decisions command by command, the same
 physics step for step, so a rendered episode is the unrendered one.
 
-Overlays (drawn with Pillow onto the frame): simulated time, the decision
-index, the action being executed, the danger levels of the seven sensors in
-phi(s) as coloured bars, the target sector V and the detection flag I; the
-outcome on the last frame.
+Overlays (drawn with Pillow): simulated time, the decision index, the action
+being executed, the danger levels of the seven sensors in phi(s) as coloured
+bars, the target sector V and the detection flag I; the outcome on the last
+frame. From the top camera the square arena fills a square of the frame and
+the overlays sit in a panel beside it (right of it in a wide frame, below it in
+a tall one), so they never cover the arena; from the other cameras, or in a
+square frame, they sit semi-transparent in the top-left corner (in a top view
+that corner holds neither the start nor the target).
 
 Errors: :class:`RenderError` (a RuntimeError) says how to fix a missing
 OpenGL backend, an unknown camera or a frame bigger than the offscreen buffer;
@@ -74,6 +78,7 @@ _OUTCOME_RGBA = {
 }
 _TRAIL_RGBA = (0.1, 0.35, 0.95, 1.0)
 _MARKER_RGBA = (0.9, 0.1, 0.1, 1.0)
+_PANEL_RGB = (32, 32, 36)  # the overlay panel beside a top view
 _MAX_TRAIL = 1500  # path segments drawn into a scene at most (decimated beyond)
 # Path width and marker per camera: thick enough to see at each camera's scale.
 _TRAIL_RADIUS = {"top": 0.3, "follow": 0.06, "chase": 0.04}
@@ -124,15 +129,41 @@ def check_frame(camera: str, width: int, height: int) -> None:
         )
 
 
+def arena_box(camera: str, width: int, height: int) -> tuple[int, int, int, int]:
+    """Where the scene lies in a ``width`` x ``height`` frame, (x0, y0, x1, y1) pixels. The top camera
+    sees the square arena, so it gets a square (the arena fills it; the frame's rest, right of it
+    or below it, is the overlay panel); the other cameras fill the frame."""
+    if camera != "top":
+        return 0, 0, width, height
+    side = min(width, height)
+    return 0, 0, side, side
+
+
+def panel_box(camera: str, width: int, height: int) -> tuple[int, int, int, int] | None:
+    """The part of the frame beside the arena that holds the overlay, or None (a square top view,
+    another camera: the overlay then sits semi-transparent in the top-left corner)."""
+    x0, y0, x1, y1 = arena_box(camera, width, height)
+    if x1 < width:
+        return x1, 0, width, height
+    if y1 < height:
+        return 0, y1, width, height
+    return None
+
+
 class View:
     """Renders the current state of ``env`` from ``camera`` (``CAMERAS``) as (height, width, 3)
-    uint8 arrays, with ``trail`` (N, 2) world metres drawn as the path so far."""
+    uint8 arrays, with ``trail`` (N, 2) world metres drawn as the path so far. The scene fills
+    :func:`arena_box`; the rest of the frame (``panel``, :func:`panel_box`) is dark grey."""
 
     def __init__(self, env: Any, camera: str, width: int, height: int) -> None:
         check_frame(camera, width, height)
         from dm_control.mujoco import engine
 
         self._env, self._camera = env, camera
+        self.size = (width, height)
+        self.box = arena_box(camera, width, height)
+        self.panel = panel_box(camera, width, height)
+        width, height = self.box[2] - self.box[0], self.box[3] - self.box[1]
         physics = env.physics
         max_geom = 2 * physics.model.ngeom + physics.model.nsite + _MAX_TRAIL + 20
         try:
@@ -168,7 +199,18 @@ class View:
             ahead = _CHASE["ahead"]
             lookat = (x + ahead * math.cos(yaw), y + ahead * math.sin(yaw), _CHASE["height"])
             self._cam.set_pose(lookat, _CHASE["distance"], math.degrees(yaw), _CHASE["elevation"])
-        return np.array(self._cam.render())
+        scene = self._cam.render()
+        if self.panel is None:
+            return np.array(scene)
+        frame = np.full((self.size[1], self.size[0], 3), _PANEL_RGB, np.uint8)
+        x0, y0, x1, y1 = self.box
+        frame[y0:y1, x0:x1] = scene
+        return frame
+
+    def scene(self) -> np.ndarray:
+        """The current frame without its panel: the square arena of a top view (montages tile these)."""
+        x0, y0, x1, y1 = self.box
+        return self.render()[y0:y1, x0:x1]
 
     def _decorate(self, physics: Any, scene: mujoco.MjvScene) -> None:
         """Adds the path so far (and, seen from the top, the robot marker) to the scene."""
@@ -227,9 +269,18 @@ def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
         return ImageFont.load_default()
 
 
-def draw_overlay(frame: np.ndarray, lines: Sequence[str], phi: np.ndarray | None) -> np.ndarray:
-    """``frame`` (H, W, 3) uint8 with ``lines`` of text at the top left and, from phi(s) (16,),
-    the seven danger levels as bars (height and colour by level 0..7), V and I at the bottom left."""
+def draw_overlay(
+    frame: np.ndarray,
+    lines: Sequence[str],
+    phi: np.ndarray | None,
+    box: tuple[int, int, int, int] | None = None,
+) -> np.ndarray:
+    """``frame`` (H, W, 3) uint8 with one block of ``lines`` of text and, from phi(s) (16,), the
+    seven danger levels as bars (height and colour by level 0..7), V and I below them.
+
+    The block goes into ``box`` (x0, y0, x1, y1 pixels: the panel beside a top view, which holds
+    nothing else) or, without one, semi-transparent into the top-left corner: in a top view that
+    corner holds neither the start (bottom left) nor the target (top right)."""
     image = Image.fromarray(frame)
     h = frame.shape[0]
     size = max(10, h // 32)
@@ -237,25 +288,27 @@ def draw_overlay(frame: np.ndarray, lines: Sequence[str], phi: np.ndarray | None
     draw = ImageDraw.Draw(image, "RGBA")
     pad = size // 2
     line_h = size + 4
+    left, top = (box[0], box[1]) if box else (0, 0)
+    bar_w, bar_h = size, 3 * size
     text_w = max((draw.textlength(t, font=font) for t in lines), default=0)
-    if lines:
-        draw.rectangle((0, 0, text_w + 2 * pad, len(lines) * line_h + pad), fill=(0, 0, 0, 150))
-        for i, text in enumerate(lines):
-            draw.text((pad, pad // 2 + i * line_h), text, fill=(255, 255, 255), font=font)
+    width = max(text_w, 7 * (bar_w + 4) if phi is not None else 0) + 2 * pad
+    height = len(lines) * line_h + (bar_h + 3 * line_h + pad if phi is not None else 0) + pad
+    if box is None and (lines or phi is not None):
+        draw.rectangle((left, top, left + width, top + height), fill=(0, 0, 0, 150))
+    for i, text in enumerate(lines):
+        draw.text((left + pad, top + pad // 2 + i * line_h), text, fill=(255, 255, 255), font=font)
     if phi is not None:
-        bar_w, bar_h = size, 3 * size
-        width = 7 * (bar_w + 4) + 2 * pad
-        top = h - bar_h - 3 * line_h - pad
-        draw.rectangle((0, top, max(width, 9 * size), h), fill=(0, 0, 0, 150))
-        base = h - 2 * line_h
+        y = top + len(lines) * line_h + pad
+        draw.text((left + pad, y), "danger", fill=(255, 255, 255), font=font)
+        base = y + line_h + bar_h
         for k, sensor in enumerate(FEATURE_SENSORS):
             level = int(phi[k])
-            x0 = pad + k * (bar_w + 4)
+            x0 = left + pad + k * (bar_w + 4)
             fill = tuple(int(c) for c in DANGER_COLOURS[level])
             draw.rectangle((x0, base - max(2, bar_h * level // 7), x0 + bar_w, base), fill=fill)
             draw.text((x0, base + 2), f"{sensor + 1}", fill=(255, 255, 255), font=font)
-        draw.text((pad, top + 2), "danger", fill=(255, 255, 255), font=font)
-        draw.text((pad, h - line_h), f"V={int(phi[7])} I={int(phi[8])}", fill=(255, 255, 255), font=font)
+        text = f"V={int(phi[7])} I={int(phi[8])}"
+        draw.text((left + pad, base + line_h + 2), text, fill=(255, 255, 255), font=font)
     return np.asarray(image)
 
 
@@ -368,7 +421,10 @@ class _VideoEpisode:
         frame = self.view.render()
         if self.overlay:
             what = ACTION_NAMES[self._action] if self._action is not None else (self._outcome or "start")
-            frame = draw_overlay(frame, [f"t {now:6.2f} s  step {self._step}", what], self._phi)
+            # Short lines: they fit the panel beside a top view of a 4:3 frame (a quarter of its width).
+            frame = draw_overlay(
+                frame, [f"t {now:.2f} s", f"step {self._step}", what], self._phi, self.view.panel
+            )
         self.writer.append_data(frame)
         self.frames += 1
         self._last_time = now
@@ -423,7 +479,8 @@ def snapshot_strip(
         snapshots: frames, evenly spaced over the episode's decisions, first and last included.
         camera: one of ``CAMERAS``; ``"top"`` shows the whole arena.
         width, height: pixels of one frame (even, at most 1280 x 960); the strip is
-            ``snapshots`` frames side by side with 4-pixel gaps.
+            ``snapshots`` frames side by side with 4-pixel gaps. A top view's frame is the
+            arena's square, min(width, height) on a side.
         overwrite: replace an existing ``out_png`` (False: FileExistsError).
 
     Each frame shows the path driven so far and is labelled with its time, decision index and,
@@ -452,7 +509,7 @@ def snapshot_strip(
                 from nirl_mj.sim.task import Outcome
 
                 text += f": {Outcome(int(timestep.observation['outcome'])).name.lower()}"
-            images.append(_label(view.render(), text))
+            images.append(_label(view.scene(), text))
 
     run_episode(env, agent, seed, on_step)
     return _save_png(_tile(images, len(images)), out, overwrite)
@@ -487,5 +544,5 @@ def paths_montage(
         view.trail = trajectory.poses[:-1, :2]
         view.trail_rgba = _OUTCOME_RGBA[trajectory.outcome]
         text = f"arena {k}: {trajectory.outcome}, {len(trajectory)} steps"
-        images.append(_label(view.render(), text))
+        images.append(_label(view.scene(), text))
     return _save_png(_tile(images, columns or min(4, len(images))), out, overwrite)
