@@ -88,7 +88,9 @@ def test_al_expectations_whole_trajectory_and_suffix_by_hand():
 
 
 def test_al_step_runs_steps_1_and_2_on_rollouts():
-    step = reward_step(LearnerConfig.preset("default", method="al", gamma=0.5), [fake([0, 0])])
+    step = reward_step(
+        LearnerConfig.preset("default", reward_features="extended", method="al", gamma=0.5), [fake([0, 0])]
+    )
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))  # eq. 11: 1 + 0.5
     # step 1: the first rollouts' mu^0 = mu_bar^0; w = mu_E - mu^0 = (1.5, -1) per component pair
     theta, t = step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
@@ -102,7 +104,9 @@ def test_al_step_runs_steps_1_and_2_on_rollouts():
     np.testing.assert_allclose(theta, pattern([10 / 9, -2 / 9, -7 / 9, 0, 0, 0]) / t)
     assert np.linalg.norm(theta) == pytest.approx(1.0)
     # a checkpoint restores mu_bar exactly
-    other = reward_step(LearnerConfig.preset("default", method="al", gamma=0.5), [fake([0, 0])])
+    other = reward_step(
+        LearnerConfig.preset("default", reward_features="extended", method="al", gamma=0.5), [fake([0, 0])]
+    )
     other.load_state(saved)
     np.testing.assert_array_equal(other.update(np.zeros(150), [fake([2, 0])], 1, np.zeros(2))[0], theta)
 
@@ -148,7 +152,13 @@ def test_re_gradient_with_importance_weights_by_hand():
 
 def test_re_step_importance_weights_from_the_rollout_policy():
     config = LearnerConfig.preset(
-        "default", method="re", gamma=0.5, re_steps=1, re_step=1.0, re_confidence=0.0
+        "default",
+        reward_features="extended",
+        method="re",
+        gamma=0.5,
+        re_steps=1,
+        re_step=1.0,
+        re_confidence=0.0,
     )
     step = reward_step(config, [fake([0, 0])])
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))
@@ -167,7 +177,10 @@ def test_re_step_importance_weights_from_the_rollout_policy():
     np.testing.assert_allclose(step.pool[1][0], [pattern([1.0, 0.5, 0, 0, 0, 0])])
     # "suffix": one sample per pair
     suffix = reward_step(
-        LearnerConfig.preset("default", method="re", gamma=0.5, re_expectations="suffix"), [fake([0, 0])]
+        LearnerConfig.preset(
+            "default", reward_features="extended", method="re", gamma=0.5, re_expectations="suffix"
+        ),
+        [fake([0, 0])],
     )
     np.testing.assert_allclose(suffix.mu_e, pattern([1.25, 0, 0, 0, 0, 0]))  # (1.5 + 1) / 2
 
@@ -202,7 +215,9 @@ def test_scirl_subgradient_and_normalised_step_by_hand():
 
 def test_scirl_reward_is_fitted_once_and_prefers_the_experts_actions():
     demos = [fake([0, 0, 3]), fake([3, 0])]
-    step = reward_step(LearnerConfig.preset("default", method="scirl", gamma=0.5), demos)
+    step = reward_step(
+        LearnerConfig.preset("default", reward_features="extended", method="scirl", gamma=0.5), demos
+    )
     theta, j = step.update(np.zeros(150), [], 0, np.zeros(5))
     assert np.linalg.norm(theta) <= 1.0 + 1e-12
     again, _ = step.update(theta, [fake([5])], 7, np.zeros(5))  # the rollouts are not read

@@ -98,7 +98,7 @@ def test_trained_policy_and_named_reward_are_usable(tmp_path, demos):
     assert 0 <= policy(np.zeros(16, dtype=np.float32) + np.eye(16)[7]) < N_ACTIONS
     assert record["task"] == TINY.to_dict()
     reward = RewardModel.from_dict(RunDir(run).read_reward())
-    assert set(reward.named()) == set(reward_feature_names("extended"))
+    assert set(reward.named()) == set(reward_feature_names("bearing"))  # the default reward features
     phi = np.array([[3, 0, 0, 0, 0, 0, 2, 1, 0, 0, 0, 0, 0, 0, 0, 0]], dtype=np.float32)
     r_all = reward.rewards_all_actions(phi)
     assert r_all.shape == (1, N_ACTIONS)

@@ -43,7 +43,8 @@ class LoopConfig:
     alpha: float = 0.8  # eq. 14
     eta: float = 5.0  # eq. 8, Boltzmann parameter at the first iteration (low: every action gets tried)
     eta_final: float = 60.0  # eta is interpolated linearly to this over the episodes
-    reward_features: str = "extended"  # "paper" (eq. 4-5), "extended" or "bearing" (learn/reward.py)
+    # "paper" (eq. 4-5), "extended" or "bearing" (learn/reward.py; the default since 2026-11-24, 2nd round)
+    reward_features: str = "bearing"
     margin_loss: float = (
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
@@ -60,7 +61,7 @@ class LoopConfig:
     net_epochs: int = 4  # full-batch steps (no replay) or minibatch epochs (replay)
     batch_size: int = 64
     input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
-    input_bearing: bool = False  # network input (cos, sin) of the sector centre in V's place (inputs.py)
+    input_bearing: bool = True  # network input (cos, sin) of the sector centre in V's place (inputs.py)
     selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
     validation_arenas: int = 20
     validate_every: int = 5
@@ -187,6 +188,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "eta": 10.0,
         "eta_final": 10.0,
         "reward_features": "paper",
+        "input_bearing": False,
         "matching": "paper",
         "future_mix": 1.0,
         "episodes": 120,

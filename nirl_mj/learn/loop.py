@@ -279,9 +279,7 @@ class IrlLoop:
             greedy = network.greedy_actions(network.q_values(self.net, self.demo_inputs))
             # the policy that drove the rollouts (RE-IRL's importance weights read it)
             drove = (before["W1"], before["W2"])
-            context = RolloutContext(
-                eta, lambda phi: network.q_values(self.net, self.inputs(phi), drove)
-            )
+            context = RolloutContext(eta, lambda phi: network.q_values(self.net, self.inputs(phi), drove))
             self.theta, margin = self.reward_step.update(
                 self.theta, trajectories, self.iteration, greedy, context
             )
