@@ -74,5 +74,5 @@ def run_episode(
 
 def _outcome(timestep: dm_env.TimeStep) -> Outcome:
     """How the episode stands; still running counts as a timeout (an episode cut short)."""
-    outcome = Outcome(int(timestep.observation["outcome"]))
+    outcome = Outcome(int(timestep.observation["outcome"][0]))
     return Outcome.TIMEOUT if outcome == Outcome.RUNNING else outcome

@@ -26,6 +26,7 @@ from dm_env import specs
 from nirl_mj.data import features
 from nirl_mj.sim.arena import NavigationArena
 from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim import observations
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
 from nirl_mj.sim.robot import Robotino
@@ -137,25 +138,23 @@ class NavigationTask(composer.Task):
         return specs.BoundedArray(shape=(), dtype=np.float64, minimum=0.0, maximum=1.0, name="discount")
 
     def _make_observables(self) -> dict[str, observable.Observable]:
+        width, height = self._spec.arena.size
+        diagonal = math.hypot(width, height)
         obs = {
             "features": lambda physics: self._phi.copy(),
             "ranges": lambda physics: np.minimum(self._scan.ranges, self._spec.sensing.range),
             "rays": lambda physics: np.minimum(self._scan.rays, self._spec.sensing.range),
             "danger": lambda physics: self._danger.copy(),
             "wall": lambda physics: self._scan.wall.astype(np.int8),
-            "pose": lambda physics: self._pose.copy(),
+            "pose": lambda physics: observations.arena_pose(self._pose, width, height),
             "target": lambda physics: np.asarray(self._spec.arena.target, dtype=np.float64),
-            "target_distance": lambda physics: np.float64(self._scan.target_distance),
-            "target_bearing": lambda physics: np.float64(_wrap(self._scan.bearing)),
-            "outcome": lambda physics: np.int32(self._outcome),
-            "steps": lambda physics: np.int32(self._steps),
+            "target_distance": lambda physics: np.array([min(self._scan.target_distance, diagonal)]),
+            "target_bearing": lambda physics: np.array([_wrap(self._scan.bearing)]),
+            "outcome": lambda physics: np.array([self._outcome], dtype=np.int32),
+            "steps": lambda physics: np.array([self._steps], dtype=np.int32),
         }
-        out = {}
-        for name, fn in obs.items():
-            o = observable.Generic(fn)
-            o.enabled = True
-            out[name] = o
-        return out
+        bounds = observations.observation_specs(self._spec)
+        return {name: observations.Bounded(fn, bounds[name]) for name, fn in obs.items()}
 
     # -- episode ---------------------------------------------------------------------
 
@@ -393,9 +392,10 @@ def make_env(
     sensed), ``rays`` (9 * rays_per_sensor,) the same per ray (sensor-major,
     ray angles in :func:`nirl_mj.sim.sensing.ray_angles`), ``danger`` (9,) levels
     0..7, ``wall`` (9,) flags, ``pose`` (x, y, yaw) metres/radians, ``target``
-    (x, y) metres, ``target_distance`` metres, ``target_bearing`` radians in
+    (x, y) metres, ``target_distance`` (1,) metres, ``target_bearing`` (1,) radians in
     (-pi, pi] counter-clockwise from the robot's front,
-    ``outcome`` (an :class:`Outcome`), ``steps`` decisions taken.
+    ``outcome`` (1,) an :class:`Outcome`, ``steps`` (1,) decisions taken. Every spec is a
+    ``BoundedArray`` with the observation's range (:mod:`nirl_mj.sim.observations`).
     """
     spec = load_task(task)
     return Environment(
