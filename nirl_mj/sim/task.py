@@ -24,9 +24,9 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from nirl_mj.data import features
+from nirl_mj.sim import observations
 from nirl_mj.sim.arena import NavigationArena
 from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
-from nirl_mj.sim import observations
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
 from nirl_mj.sim.robot import Robotino
