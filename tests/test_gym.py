@@ -138,3 +138,39 @@ def test_the_core_package_imports_and_runs_without_gymnasium():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def _gym_actions(env, policy, seed: int) -> tuple[list[int], str]:
+    obs, info = env.reset(seed=seed)
+    actions = []
+    while True:
+        actions.append(policy(obs))
+        obs, _, terminated, truncated, info = env.step(actions[-1])
+        if terminated or truncated:
+            return actions, info["outcome"]
+
+
+@pytest.mark.parametrize("kind", ["sensor", "rule", "planner"])
+def test_experts_as_policies_drive_as_they_do_in_run_episode(kind):
+    from nirl_mj.experts import make_expert
+    from nirl_mj.gym.policies import ExpertPolicy, reference_policy
+
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL)
+    policy = reference_policy(kind) if kind == "rule" else ExpertPolicy(kind, env=env)
+    dm = nirl_mj.make_env(env.unwrapped.spec_task)
+    for seed in (5, 6):  # two episodes: the expert is reset between them
+        actions, outcome = _gym_actions(env, policy, seed)
+        expected = run_episode(dm, make_expert(kind), seed)
+        assert actions == expected.actions.tolist() and outcome == expected.outcome
+
+
+def test_policies_refuse_what_they_cannot_read():
+    from nirl_mj.gym.policies import ExpertPolicy, reference_policy
+
+    with pytest.raises(ValueError, match="give env="):
+        ExpertPolicy("planner")
+    with pytest.raises(ValueError, match="accepted: planner, sensor"):
+        ExpertPolicy("oracle")
+    with pytest.raises(ValueError, match="full Dict observation"):
+        ExpertPolicy("sensor")(np.zeros(16, np.float32))
+    assert reference_policy("forward")(np.zeros(16, np.float32)) == 0
