@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 from nirl_mj.cli import commands as c
 from nirl_mj.experiments.executors import EXECUTORS
+from nirl_mj.experiments.rl import ALGOS
 from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
@@ -150,6 +151,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
+
+    p = _command(sub, "rl", c.cmd_rl, "reference: train Stable-Baselines3 on the task's reward and phi(s) "
+                 "(needs nirl-mj[gym]; resumable)", "quiet", "overwrite")
+    p.set_defaults(interrupted="checkpoints are kept: continue with nirl-mj rl --out {out} --resume")
+    p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--steps", type=_positive_int, default=50_000, help="decisions to train (default: 50000)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (network, arenas)")
+    p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
                  "quiet", "overwrite", "rerun=every test episode (with r_theta and the reward map for --run)",
