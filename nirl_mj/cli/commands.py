@@ -152,6 +152,17 @@ def cmd_demos(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from nirl_mj.gym.minari_export import export_minari  # the optional extra: only when asked
+
+    trajectories = load_dataset(args.path)
+    with _bar(args, len(trajectories), "episode", desc="replaying") as bar:
+        dataset = export_minari(trajectories, args.id, args.overwrite, on_episode=lambda i: bar.update())
+    print(f"wrote Minari dataset {args.id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps "
+          f"(minari.load_dataset({args.id!r}))")  # fmt: skip
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     trajectories = load_dataset(args.path)
     summary = summarise(trajectories)

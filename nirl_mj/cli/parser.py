@@ -141,7 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
                  "rerun=training scalars per iteration, demonstrations with r_theta, reward map",
                  task="navigate; with --resume the run's own")  # fmt: skip
-    p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
+    p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz), or minari:ID (a local Minari "
+                   "dataset)")  # fmt: skip
     p.add_argument("--out", required=True, help="run directory")
     p.set_defaults(interrupted="finished iterations are kept: continue with "
                                "nirl-mj train --out {out} --resume")
@@ -203,6 +204,15 @@ def build_parser() -> argparse.ArgumentParser:
     _experiment_command(
         sub, "sweep", "tasks/fig6.toml", "Fig. 6: success against obstacles and speed (CSV and line plot)"
     )
+
+    p = _command(sub, "export", c.cmd_export, "write a dataset as a Minari dataset (replayed in the "
+                 "environment: full observations, rewards, episode ends; needs nirl-mj[gym])", "quiet",
+                 "overwrite", task=None)
+    p.add_argument("path", help="dataset file (.npz)")
+    p.add_argument("--to", choices=["minari"], required=True, help="the format to write")
+    p.add_argument("--id", required=True, metavar="ID",
+                   help="Minari dataset id, e.g. nirl_mj/navigate/sensor-v0 (stored under "
+                   "$MINARI_DATASETS_PATH, default ~/.minari/datasets)")  # fmt: skip
 
     p = _command(
         sub, "inspect", c.cmd_inspect, "validate a dataset file and print its summary", "json", task=None

@@ -28,7 +28,7 @@ import gymnasium
 import numpy as np
 
 from nirl_mj.sim.observations import NAMES
-from nirl_mj.sim.spec import SpecError, TaskSpec, apply_overrides, load_task
+from nirl_mj.sim.spec import SpecError, TaskSpec, apply_overrides, from_dict, load_task
 from nirl_mj.sim.task import Outcome, make_env
 
 from .spaces import dict_space, space_of
@@ -37,7 +37,8 @@ CAMERAS = ("robotino/top", "robotino/chase", "overview")
 
 
 class NavigationEnv(gymnasium.Env):
-    """One navigation task (a name under ``tasks/``, a ``.toml`` path or a ``TaskSpec``).
+    """One navigation task (a name under ``tasks/``, a ``.toml`` path, a ``TaskSpec`` or its
+    ``to_dict()``).
 
     ``set``: task overrides as on the command line (``["control.speed=3"]``). ``observation``:
     None for the Dict of every observation, a sequence of names for a Dict of those, or one
@@ -49,7 +50,7 @@ class NavigationEnv(gymnasium.Env):
 
     def __init__(
         self,
-        task: str | os.PathLike | TaskSpec = "navigate",
+        task: str | os.PathLike | TaskSpec | dict = "navigate",
         set: Sequence[str] = (),  # noqa: A002 - the command line's name for it
         observation: str | Sequence[str] | None = None,
         render_mode: str | None = None,
@@ -57,9 +58,13 @@ class NavigationEnv(gymnasium.Env):
         width: int = 640,
         height: int = 480,
     ) -> None:
-        if not isinstance(task, str | os.PathLike | TaskSpec):
-            raise SpecError(f"task={task!r}: accepted: a task name under tasks/, a .toml path or a TaskSpec")
-        spec = load_task(task)
+        if isinstance(task, dict):  # TaskSpec.to_dict(): JSON, so it can sit in a (Minari) EnvSpec
+            spec = from_dict(task, "task")
+        elif isinstance(task, str | os.PathLike | TaskSpec):
+            spec = load_task(task)
+        else:
+            raise SpecError(f"task={task!r}: accepted: a task name under tasks/, a .toml path, a TaskSpec "
+                            "or its to_dict()")  # fmt: skip
         if isinstance(set, str):
             set = [set]
         spec = apply_overrides(spec, list(set))
