@@ -174,3 +174,57 @@ def test_policies_refuse_what_they_cannot_read():
     with pytest.raises(ValueError, match="full Dict observation"):
         ExpertPolicy("sensor")(np.zeros(16, np.float32))
     assert reference_policy("forward")(np.zeros(16, np.float32)) == 0
+
+
+# -- continuous actions ---------------------------------------------------------------------------
+
+
+def test_continuous_actions_are_a_bounded_twist_through_the_wheel_controller():
+    import math
+
+    from nirl_mj.sim import spec
+
+    with pytest.raises(spec.SpecError, match="accepted: discrete, continuous"):
+        spec.apply_overrides(spec.load_task("navigate"), ['control.actions="sideways"'])
+    assert "actions" not in spec.load_task("navigate").to_dict()["control"]  # records unchanged
+    task = spec.apply_overrides(spec.load_task("navigate"), [*SMALL, "arena.static_obstacles=0",
+                                                              'control.actions="continuous"'])  # fmt: skip
+    env = nirl_mj.make_env(task, seed=0)
+    bounds = env.action_spec()
+    assert bounds.shape == (2,) and bounds.maximum.tolist() == [2.0, pytest.approx(math.pi / 3 / 0.5)]
+    start = env.reset().observation["pose"].copy()
+    for _ in range(3):
+        ts = env.step(np.array([0.0, bounds.maximum[1]]))  # on the spot, left at full rate
+    turned = math.degrees(ts.observation["pose"][2] - start[2])
+    assert 150 < turned <= 180  # 60 degrees a decision, less the wheels' acceleration ramp
+    assert np.hypot(*(ts.observation["pose"][:2] - start[:2])) < 0.05
+    with pytest.raises(ValueError, match=r"out of range: accepted \(forward speed m/s in \[-2, 2\]"):
+        env.step(np.array([2.5, 0.0]))
+    with pytest.raises(ValueError, match="two finite numbers"):
+        env.step(3)
+    with pytest.raises(ValueError, match="continuous actions; episodes are recorded"):
+        run_episode(env, _Stop(), 0)
+
+
+def test_the_rule_and_ppo_drive_with_continuous_actions():
+    from nirl_mj.gym.policies import reference_policy
+
+    gym_set = [*SMALL, 'control.actions="continuous"']
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*gym_set, "arena.static_obstacles=0"])
+    assert env.action_space == gymnasium.spaces.Box(np.float32([-2, -2.0943951]), np.float32([2, 2.0943951]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # Physical units (m/s, rad/s) by design; wrap in RescaleAction for [-1, 1].
+        warnings.filterwarnings("ignore", message=".*symmetric and normalized space")
+        from gymnasium.utils.env_checker import check_env
+
+        check_env(env.unwrapped)
+    _, outcome = _gym_actions(env, reference_policy("rule", env=env), 0)
+    assert outcome == "target"
+
+    sb3 = pytest.importorskip("stable_baselines3")
+    model = sb3.PPO("MultiInputPolicy", gymnasium.make("nirl_mj/Navigate-v0", set=gym_set), n_steps=64,
+                    batch_size=32, n_epochs=1, seed=0, device="cpu")  # fmt: skip
+    model.learn(64)
+    action, _ = model.predict(env.reset(seed=1)[0], deterministic=True)
+    assert action.shape == (2,) and env.action_space.contains(action.astype(np.float32))

@@ -88,6 +88,8 @@ def train_rl(
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
     100 training episodes)."""
     cls = _algorithm(algo)
+    if algo == "dqn" and task.control.actions != "discrete":
+        raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
     run = RunDir(run_dir)
@@ -179,8 +181,8 @@ def load_rl_policy(run_dir: str | os.PathLike) -> tuple[Callable[[np.ndarray], i
         raise RunError(f"{run} is not an RL run ({RUN_FILE} has no kind = rl)")
     model = _algorithm(record["algo"]).load(run.model_file(), device="cpu")
 
-    def policy(phi: np.ndarray) -> int:
+    def policy(phi: np.ndarray) -> int | np.ndarray:
         action, _ = model.predict(scaled(phi), deterministic=True)
-        return int(action)
+        return action if np.ndim(action) else int(action)  # continuous: (forward, yaw rate)
 
     return policy, record

@@ -14,6 +14,8 @@ the dm_env environment underneath plus the Gymnasium conventions:
 - ``info``: ``outcome`` (``"running"``, ``"target"``, ``"collision"``, ``"timeout"``,
   ``"physics_error"``), ``is_success`` (reached the target; Stable-Baselines3's Monitor and
   EvalCallback read it) and ``steps``.
+- Actions: ``Discrete(6)``, or with ``[control] actions = "continuous"`` a float32 ``Box`` (2,):
+  forward speed (m/s) and yaw rate (rad/s), held for one decision.
 - ``render_mode="rgb_array"``: an offscreen (EGL) frame (height, width, 3) uint8 from a camera
   of the model; ``metadata["render_fps"]`` is one frame per decision (2 at 0.5 s).
 """
@@ -79,6 +81,13 @@ class NavigationEnv(gymnasium.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.control.decision_period}
         obs_spec = self._env.observation_spec()
         self.action_space = space_of(self._env.action_spec())
+        if isinstance(self.action_space, gymnasium.spaces.Box):
+            # float32, as Stable-Baselines3 and most agents act; the task accepts a float32 rounding
+            # beyond a bound as the bound.
+            low, high = (
+                bound.astype(np.float32) for bound in (self.action_space.low, self.action_space.high)
+            )
+            self.action_space = gymnasium.spaces.Box(low, high, (2,), np.float32)
         self.observation_space = (
             space_of(obs_spec[self._keys[0]]) if self._single else dict_space(obs_spec, self._keys)
         )

@@ -29,6 +29,7 @@ import numpy as np
 
 from nirl_mj.experts import EXPERT_KINDS, make_expert
 from nirl_mj.experts.policies import POLICIES
+from nirl_mj.sim.drive import ACTIONS
 
 _NEEDS_ENV = ("planner", "noisy")
 
@@ -67,16 +68,30 @@ class ExpertPolicy:
         return None if self._env is None else self._env.unwrapped.dm_env
 
 
-def reference_policy(name: str):
+def reference_policy(name: str, env=None):
     """A reference policy of :data:`nirl_mj.experts.policies.POLICIES` (``rule``, ``forward``) as
-    ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself."""
+    ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself. Given the
+    ``env`` it drives, of a task with continuous actions, it acts with :func:`twist_of` its
+    discrete choice."""
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
+    task = None if env is None else env.unwrapped.spec_task
+    continuous = task is not None and task.control.actions == "continuous"
 
-    def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int:
+    def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:
         phi = observation["features"] if isinstance(observation, Mapping) else observation
-        return int(on_phi(np.asarray(phi)))
+        action = int(on_phi(np.asarray(phi)))
+        return twist_of(action, task) if continuous else action
 
     policy.__name__ = name
     return policy
+
+
+def twist_of(action: int, task) -> np.ndarray:
+    """The continuous action closest to discrete ``action`` on ``task`` (a ``TaskSpec``): float32
+    (forward speed m/s, yaw rate rad/s), the discrete action's speed and its turn spread evenly
+    over the decision (the discrete action ramps its yaw rate; both end at the same heading)."""
+    move = ACTIONS[action]
+    return np.array([move.direction * task.control.speed, move.turn / task.control.decision_period],
+                    dtype=np.float32)  # fmt: skip

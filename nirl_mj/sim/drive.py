@@ -31,6 +31,7 @@ __all__ = [
     "DriveController",
     "action_profile",
     "body_twist",
+    "max_yaw_rate",
     "rate_limit",
     "wheel_speeds",
 ]
@@ -211,6 +212,12 @@ def action_profile(
     return out
 
 
+def max_yaw_rate(period: float) -> float:
+    """The largest yaw rate (rad/s) of a continuous action: held for a whole decision of
+    ``period`` seconds it turns 60 degrees, as the sharpest discrete action does."""
+    return math.radians(60.0) / period
+
+
 def rate_limit(
     previous: np.ndarray | list | tuple,
     targets: np.ndarray | list | tuple,
@@ -303,5 +310,26 @@ class DriveController:
             if len(self._plans) >= self._CACHE_SIZE:
                 self._plans.clear()
             self._plans[key] = commands
+        self._last = commands[-1].copy()
+        return commands
+
+    def plan_twist(
+        self,
+        forward: float,
+        yaw_rate: float,
+        period: float = 0.5,
+        cmd_dt: float = 0.01,
+        max_accel: float = 4.0,
+    ) -> np.ndarray:
+        """Wheel-speed commands for one decision of a continuous action: the body twist
+        ``[forward, 0, yaw_rate]`` (m/s, rad/s) held for the decision -> IK -> the same rate limit
+        as :meth:`plan` (so turning starts with the wheels' acceleration limit).
+
+        Returns:
+            Shape (n_cmd, 3) wheel speeds (rad/s), one row per command period.
+        """
+        n = _n_commands(period, cmd_dt)
+        targets = np.repeat(wheel_speeds([forward, 0.0, yaw_rate])[None, :], n, axis=0)
+        commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
         self._last = commands[-1].copy()
         return commands

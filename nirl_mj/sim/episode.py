@@ -53,6 +53,11 @@ def run_episode(
     Raises :class:`EpisodeAbandoned` (with the episode so far) if the agent returns None
     instead of an action."""
     spec = env.task.spec
+    if spec.control.actions != "discrete":
+        raise ValueError(
+            f"task {spec.name} has continuous actions; episodes are recorded (as trajectories, datasets, "
+            "evaluations) with the six discrete actions only: drive it through nirl_mj.gym (NavigationEnv)"
+        )
     env.random_state.seed(seed)
     timestep = env.reset()
     agent.reset(env, timestep)

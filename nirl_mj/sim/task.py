@@ -26,7 +26,7 @@ from dm_env import specs
 from nirl_mj.data import features
 from nirl_mj.sim import observations
 from nirl_mj.sim.arena import NavigationArena
-from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist, max_yaw_rate
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
 from nirl_mj.sim.robot import Robotino
@@ -80,6 +80,7 @@ class NavigationTask(composer.Task):
         self._substeps_per_command = round(control.command_period / spec.physics_timestep)
         self._commands_per_decision = round(control.decision_period / control.command_period)
         self._drive = DriveController()
+        self._continuous = control.actions == "continuous"
         self._budget = spec.step_budget
         # Composer reads the observables once before the first episode.
         self._layout: Layout | None = None
@@ -128,7 +129,12 @@ class NavigationTask(composer.Task):
     def observables(self):
         return self._observables
 
-    def action_spec(self, physics) -> specs.DiscreteArray:
+    def action_spec(self, physics) -> specs.DiscreteArray | specs.BoundedArray:
+        """``DiscreteArray(6)``, or with ``control.actions = "continuous"`` a ``BoundedArray`` (2,):
+        forward speed in [-speed, speed] m/s and yaw rate in [-w, w] rad/s, w the rate that turns
+        60 degrees in one decision (:func:`~nirl_mj.sim.drive.max_yaw_rate`)."""
+        if self._continuous:
+            return continuous_action_spec(self._spec)
         return specs.DiscreteArray(num_values=features.N_ACTIONS, dtype=np.int64, name="action")
 
     def get_reward_spec(self) -> specs.Array:
@@ -198,11 +204,17 @@ class NavigationTask(composer.Task):
         self._sense(physics)
 
     def before_step(self, physics, action, random_state) -> None:
-        action = _checked_action(action)
         control = self._spec.control
-        wheel_commands = self._drive.plan(
-            action, control.speed, control.decision_period, control.command_period, control.max_accel
-        )
+        if self._continuous:
+            forward, yaw_rate = _checked_twist(action, continuous_action_spec(self._spec))
+            wheel_commands = self._drive.plan_twist(
+                forward, yaw_rate, control.decision_period, control.command_period, control.max_accel
+            )
+        else:
+            wheel_commands = self._drive.plan(
+                _checked_action(action), control.speed, control.decision_period, control.command_period,
+                control.max_accel,
+            )  # fmt: skip
         checked = self.command_hook is not None or not self._nothing_within_reach()
         self._run_decision(physics, wheel_commands, checked=checked)
 
@@ -378,6 +390,30 @@ def _checked_action(action) -> int:
             f"({', '.join(f'{i} {n}' for i, n in enumerate(features.ACTION_NAMES))}), got {action!r}"
         )
     return int(a)
+
+
+def continuous_action_spec(spec: TaskSpec) -> specs.BoundedArray:
+    """The continuous action of a task: (forward speed m/s, yaw rate rad/s), shape (2,)."""
+    speed, yaw = spec.control.speed, max_yaw_rate(spec.control.decision_period)
+    return specs.BoundedArray((2,), np.float64, [-speed, -yaw], [speed, yaw], name="action")
+
+
+def _checked_twist(action, bounds: specs.BoundedArray) -> tuple[float, float]:
+    """A continuous action as (forward m/s, yaw rate rad/s), or a clear error. A value a float32
+    rounding beyond a bound (Gymnasium and Stable-Baselines3 act in float32) counts as the bound."""
+    accepted = (f"(forward speed m/s in [{bounds.minimum[0]:g}, {bounds.maximum[0]:g}], yaw rate rad/s in "
+                f"[{bounds.minimum[1]:.4g}, {bounds.maximum[1]:.4g}])")  # fmt: skip
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.full(3, np.nan)
+    if a.shape != (2,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"a continuous action is two finite numbers {accepted}, got {action!r}")
+    slack = 1e-6 * np.abs(bounds.maximum)
+    if np.any(a < bounds.minimum - slack) or np.any(a > bounds.maximum + slack):
+        raise ValueError(f"continuous action {a.tolist()} out of range: accepted {accepted}")
+    a = np.clip(a, bounds.minimum, bounds.maximum)
+    return float(a[0]), float(a[1])
 
 
 def make_env(
