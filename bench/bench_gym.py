@@ -1,0 +1,97 @@
+"""The Gymnasium adapter's overhead: decisions per second through ``gymnasium.make`` against the
+raw dm_env ``env.step`` underneath.
+
+Two environments of the same task and seed run in lockstep, driven by the rule policy (the raw
+one's phi(s) decides, so both take the same actions in the same arenas); each decision is timed
+on both, alternately, so that machine noise hits both alike. The Gymnasium side is what a user
+gets from ``gymnasium.make("nirl_mj/Navigate-v0")`` (its OrderEnforcing and PassiveEnvChecker
+wrappers included), with the full Dict observation and with ``observation="features"``. Resets
+are excluded. One process, one core. Writes docs/PERFORMANCE.md.
+
+    python bench/bench_gym.py [--decisions 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium
+import numpy as np
+
+import nirl_mj
+from nirl_mj.experts.policies import rule_policy
+
+try:
+    from report import markdown_table, write_section
+except ImportError:  # run as a module
+    from bench.report import markdown_table, write_section
+
+
+def measure(decisions: int, observation: str | None, seed: int = 0) -> dict:
+    """Seconds of ``env.step`` on the raw and the Gymnasium environment over ``decisions``."""
+    raw = nirl_mj.make_env("navigate", seed=seed)
+    gym = gymnasium.make("nirl_mj/Navigate-v0", observation=observation)
+    raw.random_state.seed(seed)
+    timestep = raw.reset()
+    gym.reset(seed=seed)
+    raw_time = gym_time = 0.0
+    episodes = 0
+    for i in range(decisions):
+        if timestep.last():
+            episodes += 1
+            raw.random_state.seed(seed + episodes)
+            timestep = raw.reset()
+            gym.reset(seed=seed + episodes)
+        action = np.int64(rule_policy(timestep.observation["features"]))
+        # Alternate which goes first: neither always meets a warm or a cold cache.
+        if i % 2:
+            t0 = time.perf_counter()
+            timestep = raw.step(action)
+            t1 = time.perf_counter()
+            out = gym.step(action)
+            t2 = time.perf_counter()
+            raw_time, gym_time = raw_time + t1 - t0, gym_time + t2 - t1
+        else:
+            t0 = time.perf_counter()
+            out = gym.step(action)
+            t1 = time.perf_counter()
+            timestep = raw.step(action)
+            t2 = time.perf_counter()
+            gym_time, raw_time = gym_time + t1 - t0, raw_time + t2 - t1
+        assert out[2] or out[3] or not timestep.last()  # lockstep: the same episode ends
+    return {"raw": decisions / raw_time, "gym": decisions / gym_time, "episodes": episodes}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--decisions", type=int, default=3000)
+    args = parser.parse_args()
+    rows = []
+    for observation in (None, "features"):
+        m = measure(args.decisions, observation)
+        label = "full Dict" if observation is None else f'observation="{observation}"'
+        rows.append([label, f"{m['raw']:.0f}", f"{m['gym']:.0f}", f"{m['gym'] / m['raw']:.3f}",
+                     str(m["episodes"])])  # fmt: skip
+        print(rows[-1])
+    body = (
+        f"navigate (20 obstacles, 2 m/s, tyre), rule policy, {args.decisions} decisions per row, the two "
+        "environments in lockstep, each decision timed on both (resets excluded):\n\n"
+        + markdown_table(
+            [
+                "Gymnasium observation",
+                "raw env.step (decisions/s)",
+                "gymnasium.make (decisions/s)",
+                "ratio",
+                "episodes",
+            ],
+            rows,
+        )  # fmt: skip
+        + "\n\nThe adapter copies the observations (composer may hand out buffers it overwrites) and "
+        "builds `info`; Gymnasium's OrderEnforcing and PassiveEnvChecker wrappers add two calls."
+    )
+    write_section("Gymnasium adapter (bench/bench_gym.py)", body)
+
+
+if __name__ == "__main__":
+    main()
