@@ -35,7 +35,7 @@ def measure(decisions: int, observation: str | None, seed: int = 0) -> dict:
     raw.random_state.seed(seed)
     timestep = raw.reset()
     gym.reset(seed=seed)
-    raw_time = gym_time = 0.0
+    spent = {"raw": 0.0, "gym": 0.0}
     episodes = 0
     for i in range(decisions):
         if timestep.last():
@@ -45,22 +45,15 @@ def measure(decisions: int, observation: str | None, seed: int = 0) -> dict:
             gym.reset(seed=seed + episodes)
         action = np.int64(rule_policy(timestep.observation["features"]))
         # Alternate which goes first: neither always meets a warm or a cold cache.
-        if i % 2:
+        envs = [("raw", raw), ("gym", gym)]
+        results = {}
+        for name, env in envs if i % 2 else envs[::-1]:
             t0 = time.perf_counter()
-            timestep = raw.step(action)
-            t1 = time.perf_counter()
-            out = gym.step(action)
-            t2 = time.perf_counter()
-            raw_time, gym_time = raw_time + t1 - t0, gym_time + t2 - t1
-        else:
-            t0 = time.perf_counter()
-            out = gym.step(action)
-            t1 = time.perf_counter()
-            timestep = raw.step(action)
-            t2 = time.perf_counter()
-            gym_time, raw_time = gym_time + t1 - t0, raw_time + t2 - t1
+            results[name] = env.step(action)
+            spent[name] += time.perf_counter() - t0
+        timestep, out = results["raw"], results["gym"]
         assert out[2] or out[3] or not timestep.last()  # lockstep: the same episode ends
-    return {"raw": decisions / raw_time, "gym": decisions / gym_time, "episodes": episodes}
+    return {"raw": decisions / spent["raw"], "gym": decisions / spent["gym"], "episodes": episodes}
 
 
 def main() -> None:

@@ -115,3 +115,9 @@ def test_compare_runs_an_rl_method_next_to_the_others(tmp_path):
     assert results["methods"]["PPO"]["runs"] == 1 and results["cells"]["PPO-run000"]["tests"] == 2
     record = json.loads((out / "runs" / "PPO" / "0" / "run.json").read_text())
     assert record["kind"] == "rl" and np.isfinite(results["methods"]["PPO"]["avg"])
+    # PPO acts by sampling its policy with a seeded generator: the same actions every time.
+    from nirl_mj.experiments.rl import load_rl_policy
+
+    phis = np.random.default_rng(0).integers(0, 2, (30, 16)).astype(np.float32)
+    runs = [[load_rl_policy(out / "runs" / "PPO" / "0")[0](phi) for phi in phis] for _ in range(2)]
+    assert runs[0] == runs[1] and all(isinstance(a, int) and 0 <= a < 6 for a in runs[0])

@@ -314,22 +314,16 @@ class DriveController:
         return commands
 
     def plan_twist(
-        self,
-        forward: float,
-        yaw_rate: float,
-        period: float = 0.5,
-        cmd_dt: float = 0.01,
-        max_accel: float = 4.0,
+        self, twist: tuple[float, float], period: float, cmd_dt: float, max_accel: float
     ) -> np.ndarray:
-        """Wheel-speed commands for one decision of a continuous action: the body twist
-        ``[forward, 0, yaw_rate]`` (m/s, rad/s) held for the decision -> IK -> the same rate limit
-        as :meth:`plan` (so turning starts with the wheels' acceleration limit).
-
-        Returns:
-            Shape (n_cmd, 3) wheel speeds (rad/s), one row per command period.
-        """
-        n = _n_commands(period, cmd_dt)
-        targets = np.repeat(wheel_speeds([forward, 0.0, yaw_rate])[None, :], n, axis=0)
+        """Wheel-speed commands for one decision of a continuous action: ``twist`` (forward m/s,
+        yaw rate rad/s), i.e. the body twist ``[forward, 0, yaw_rate]`` held for the decision ->
+        IK -> the same rate limit as :meth:`plan` (so a turn starts with the wheels' acceleration
+        ramp). Shape (n_cmd, 3) wheel speeds (rad/s), one row per command period."""
+        forward, yaw_rate = twist
+        targets = np.repeat(
+            wheel_speeds([forward, 0.0, yaw_rate])[None, :], _n_commands(period, cmd_dt), axis=0
+        )
         commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
         self._last = commands[-1].copy()
         return commands

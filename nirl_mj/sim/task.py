@@ -206,9 +206,9 @@ class NavigationTask(composer.Task):
     def before_step(self, physics, action, random_state) -> None:
         control = self._spec.control
         if self._continuous:
-            forward, yaw_rate = _checked_twist(action, continuous_action_spec(self._spec))
+            twist = _checked_twist(action, continuous_action_spec(self._spec))
             wheel_commands = self._drive.plan_twist(
-                forward, yaw_rate, control.decision_period, control.command_period, control.max_accel
+                twist, control.decision_period, control.command_period, control.max_accel
             )
         else:
             wheel_commands = self._drive.plan(
