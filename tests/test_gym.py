@@ -138,6 +138,15 @@ def test_the_core_package_imports_and_runs_without_gymnasium():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+    # What needs the extra says so, in one line.
+    code = ("import sys; sys.modules['gymnasium'] = None\nimport nirl_mj.cli\n"
+            "sys.exit(nirl_mj.cli.main(['rl', '--steps', '8', '--out', sys.argv[1]]))")  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code, "/nonexistent/rl"], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "nirl-mj rl: error: this needs the optional extra nirl-mj[gym] (no module 'gymnasium'): "
+        "pip install -e '.[gym]'"
+    ]
 
 
 def _gym_actions(env, policy, seed: int) -> tuple[list[int], str]:

@@ -153,7 +153,9 @@ def cmd_demos(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from nirl_mj.gym.minari_export import export_minari  # the optional extra: only when asked
+    import minari  # noqa: F401  (the optional extra: missing, it fails here, before any work)
+
+    from nirl_mj.gym.minari_export import export_minari
 
     trajectories = load_dataset(args.path)
     with _bar(args, len(trajectories), "episode", desc="replaying") as bar:
@@ -254,7 +256,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_rl(args: argparse.Namespace) -> int:
-    from nirl_mj.experiments.rl import train_rl  # the optional extra: only when asked
+    import gymnasium  # noqa: F401  (the optional extra: missing, it fails here, before any work)
+    import stable_baselines3  # noqa: F401
+
+    from nirl_mj.experiments.rl import train_rl
 
     out = RunDir(args.out)
     if args.overwrite and not args.resume and not out.is_empty():
