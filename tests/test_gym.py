@@ -53,7 +53,7 @@ def test_reset_with_a_seed_draws_the_arena_of_that_arena_seed():
         np.testing.assert_array_equal(first[key], again[key])
     assert not np.array_equal(first["rays"], other["rays"])
     # The same arena as run_episode's for arena seed 11, through the dm_env underneath.
-    dm = nirl_mj.make_env(env.unwrapped.spec_task)
+    dm = nirl_mj.make_env(env.unwrapped.task_spec)
     seen = []
     run_episode(dm, _Stop(), 11, on_step=lambda i, ts, a: seen.append(ts.observation))
     for key in NAMES:
@@ -166,7 +166,7 @@ def test_experts_as_policies_drive_as_they_do_in_run_episode(kind):
 
     env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL)
     policy = reference_policy(kind) if kind == "rule" else ExpertPolicy(kind, env=env)
-    dm = nirl_mj.make_env(env.unwrapped.spec_task)
+    dm = nirl_mj.make_env(env.unwrapped.task_spec)
     for seed in (5, 6):  # two episodes: the expert is reset between them
         actions, outcome = _gym_actions(env, policy, seed)
         expected = run_episode(dm, make_expert(kind), seed)

@@ -29,11 +29,10 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from nirl_mj.gym.spaces import dict_space, space_of
 from nirl_mj.sim.observations import NAMES
 from nirl_mj.sim.spec import SpecError, TaskSpec, apply_overrides, from_dict, load_task
 from nirl_mj.sim.task import Outcome, make_env
-
-from .spaces import dict_space, space_of
 
 CAMERAS = ("robotino/top", "robotino/chase", "overview")
 
@@ -53,7 +52,7 @@ class NavigationEnv(gymnasium.Env):
     def __init__(
         self,
         task: str | os.PathLike | TaskSpec | dict = "navigate",
-        set: Sequence[str] = (),  # noqa: A002 - the command line's name for it
+        set: Sequence[str] = (),  # the command line's name for task overrides
         observation: str | Sequence[str] | None = None,
         render_mode: str | None = None,
         camera: str = "robotino/top",
@@ -76,7 +75,7 @@ class NavigationEnv(gymnasium.Env):
             raise SpecError(f"camera={camera!r}: accepted: {', '.join(CAMERAS)}")
         self._keys, self._single = _observation_keys(observation)
         self._env = make_env(spec)
-        self.spec_task = spec
+        self.task_spec = spec
         self.render_mode, self._frame = render_mode, (height, width, camera)
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.control.decision_period}
         obs_spec = self._env.observation_spec()

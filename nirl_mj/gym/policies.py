@@ -76,7 +76,7 @@ def reference_policy(name: str, env=None):
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
-    task = None if env is None else env.unwrapped.spec_task
+    task = None if env is None else env.unwrapped.task_spec
     continuous = task is not None and task.control.actions == "continuous"
 
     def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:
