@@ -34,3 +34,13 @@ def make_env(task="navigate", seed=None):
 
 
 __all__ = ["make_env", "__version__"]
+
+# Gymnasium ids (nirl_mj/Navigate-v0, ...) whenever the optional extra is installed: Gymnasium 1.x
+# finds an id only once registered. Costs Gymnasium's import (~70 ms), no simulator.
+try:
+    from nirl_mj.gym.registration import register_envs as _register_envs
+except ModuleNotFoundError as _exc:
+    if (_exc.name or "").partition(".")[0] != "gymnasium":
+        raise
+else:
+    _register_envs()

@@ -85,7 +85,7 @@ def test_a_tipped_robot_ends_the_episode_as_a_physics_error():
     while not timestep.last():
         timestep = env.step(steps % 6)
         steps += 1
-    assert Outcome(int(timestep.observation["outcome"])) == Outcome.PHYSICS_ERROR
+    assert Outcome(int(timestep.observation["outcome"][0])) == Outcome.PHYSICS_ERROR
     assert "tipped over" in env.task.physics_error and timestep.discount == 0.0
 
 

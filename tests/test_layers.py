@@ -23,7 +23,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-ROOMS = ("data", "sim", "experts", "learn", "inspect", "experiments", "cli")
+ROOMS = ("data", "sim", "experts", "learn", "inspect", "gym", "experiments", "cli")
 """The sub-packages (and cli.py), bottom to top."""
 
 ALLOWED: dict[str, frozenset[str]] = {
@@ -32,16 +32,21 @@ ALLOWED: dict[str, frozenset[str]] = {
     "experts": frozenset({"experts", "sim", "data"}),
     "learn": frozenset({"learn", "data"}),
     "inspect": frozenset({"inspect", "learn", "experts", "sim", "data"}),
-    "experiments": frozenset({"experiments", "inspect", "learn", "experts", "sim", "data"}),
+    "gym": frozenset({"gym", "experts", "sim", "data"}),
+    "experiments": frozenset({"experiments", "inspect", "gym", "learn", "experts", "sim", "data"}),
     "cli": frozenset(ROOMS),
     # The package's own __init__.py (make_env) may reach any room but cli; no room imports it.
     "": frozenset(ROOMS) - {"cli"},
 }
 """Room -> the rooms whose modules it may import ("" is the top-level package module)."""
 
+_GYM_EXTRA = frozenset({"gymnasium", "stable_baselines3", "minari", "h5py", "shimmy"})
 FORBIDDEN_EXTERNAL: dict[str, frozenset[str]] = {
-    "learn": frozenset({"mujoco", "dm_control", "dm_env"}),
-    "data": frozenset({"mujoco", "dm_control", "dm_env", "torch"}),
+    "learn": frozenset({"mujoco", "dm_control", "dm_env"}) | _GYM_EXTRA,
+    "data": frozenset({"mujoco", "dm_control", "dm_env", "torch"}) | _GYM_EXTRA,
+    "sim": _GYM_EXTRA,
+    "experts": _GYM_EXTRA,
+    "inspect": _GYM_EXTRA,
 }
 """Room -> third-party top-level packages it must not import."""
 

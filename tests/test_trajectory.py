@@ -430,9 +430,9 @@ def test_recorder_on_a_real_rollout(tmp_path):
         k += 1
     from nirl_mj.sim.task import Outcome
 
-    traj = rec.finish(Outcome(int(ts.observation["outcome"])), 3, task, task.control.speed, "planner")
+    traj = rec.finish(Outcome(int(ts.observation["outcome"][0])), 3, task, task.control.speed, "planner")
     t = len(traj)
-    assert t == k == int(ts.observation["steps"])
+    assert t == k == int(ts.observation["steps"][0])
     assert traj.features.shape == (t + 1, 16) and traj.features.dtype == np.float32
     assert traj.actions.shape == (t,) and traj.actions.dtype == np.int8
     assert traj.ranges.shape == (t + 1, 9) and traj.ranges.dtype == np.float32

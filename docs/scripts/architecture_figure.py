@@ -27,11 +27,12 @@ PACKAGE = ROOT / "nirl_mj"
 OUT = ROOT / "docs" / "images" / "architecture.png"
 
 # Where each room sits (x0, y0, x1, y1): upper rooms above lower ones; learn stands beside
-# experts and sim because it imports neither.
+# experts and sim because it imports neither, gym beside inspect likewise.
 BOXES = {
     "cli": (-4.0, 10.0, 4.0, 11.0),
     "experiments": (-4.0, 7.9, 4.0, 9.2),
-    "inspect": (-4.0, 6.0, 4.0, 7.0),
+    "inspect": (-4.0, 6.0, -0.6, 7.0),
+    "gym": (0.6, 6.0, 4.0, 7.0),
     "learn": (-4.0, 1.6, -0.6, 5.2),
     "experts": (0.6, 3.9, 4.0, 5.2),
     "sim": (0.6, 1.6, 4.0, 3.1),

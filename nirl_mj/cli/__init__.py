@@ -18,6 +18,10 @@ CLEAN_ERRORS = (SpecError, ArenaGenerationError, DatasetError, RunError, OSError
 (OSError covers FileExistsError: a run or file that would be overwritten)."""
 
 
+GYM_EXTRA = ("gymnasium", "stable_baselines3", "minari", "h5py")
+"""The optional extra's packages (``rl``, ``export``, ``eval`` of an RL run, ``train --demos minari:``)."""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
@@ -25,6 +29,12 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except CLEAN_ERRORS as exc:
         print(f"nirl-mj {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").partition(".")[0] not in GYM_EXTRA:
+            raise
+        print(f"nirl-mj {args.command}: error: this needs the optional extra nirl-mj[gym] (no module "
+              f"{exc.name!r}): pip install -e '.[gym]'", file=sys.stderr)  # fmt: skip
         return 2
     except KeyboardInterrupt:
         kept = (

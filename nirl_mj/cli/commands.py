@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from tqdm import tqdm
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.outcomes import summarise
-from nirl_mj.data.rundir import RunDir
+from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, RunDir, RunError
 from nirl_mj.experiments import compare, sweep
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
@@ -32,6 +33,7 @@ from nirl_mj.inspect.text import episode_line, evaluation_line, predictability_l
 from nirl_mj.learn.config import LearnerConfig, checked_changes
 from nirl_mj.learn.predictability import predictability
 from nirl_mj.learn.pretreat import map_pretreat
+from nirl_mj.sim import spec as specs
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.spec import SpecError, apply_overrides, load_task
 from nirl_mj.sim.task import make_env
@@ -150,6 +152,19 @@ def cmd_demos(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    import minari  # noqa: F401  (the optional extra: missing, it fails here, before any work)
+
+    from nirl_mj.gym.minari_export import export_minari
+
+    trajectories = load_dataset(args.path)
+    with _bar(args, len(trajectories), "episode", desc="replaying") as bar:
+        dataset = export_minari(trajectories, args.id, args.overwrite, on_episode=lambda i: bar.update())
+    print(f"wrote Minari dataset {args.id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps "
+          f"(minari.load_dataset({args.id!r}))")  # fmt: skip
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     trajectories = load_dataset(args.path)
     summary = summarise(trajectories)
@@ -237,6 +252,37 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"wrote {finish_training(recording, args.out, demos)}")
     print(f"trained {record['iterations']} iterations ({config.loop.variant} variant); selected policy: "
           f"iteration {record['selected_iteration']}; run in {args.out}")  # fmt: skip
+    return 0
+
+
+def cmd_rl(args: argparse.Namespace) -> int:
+    import gymnasium  # noqa: F401  (the optional extra: missing, it fails here, before any work)
+    import stable_baselines3  # noqa: F401
+
+    from nirl_mj.experiments.rl import train_rl
+
+    out = RunDir(args.out)
+    if args.overwrite and not args.resume and not out.is_empty():
+        extra = out.names() - {RUN_FILE, MODEL_FILE, EVAL_FILE}
+        if not out.is_run or out.read_record().get("kind") != "rl" or extra:
+            raise RunError(f"{out} is not an RL run directory; --overwrite replaces only an RL run")
+        shutil.rmtree(out.path)
+    spec = _task(args)
+    if args.resume:
+        spec = specs.from_dict(out.read_record()["task"], str(out.file(RUN_FILE)))
+        if args.task or args.set:
+            raise SpecError("--resume continues with the run's task; --task and --set cannot change it")
+    done = out.read_record().get("steps_done", 0) if args.resume else 0
+    with _bar(args, args.steps, "decision", initial=min(done, args.steps)) as bar:
+
+        def progress(n: int, stats: dict) -> None:
+            bar.update(n)
+            bar.set_postfix(episodes=stats["episodes"], succ=f"{stats['success']:.2f}", refresh=False)
+
+        record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress)
+    arenas = len(record["train_seeds"])
+    print(f"trained {args.algo} for {record['steps_done']} decisions ({arenas} training arenas) on "
+          f"{spec.name}; run in {args.out} (test it with nirl-mj eval --run {args.out})")  # fmt: skip
     return 0
 
 

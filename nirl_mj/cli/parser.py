@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 from nirl_mj.cli import commands as c
 from nirl_mj.experiments.executors import EXECUTORS
+from nirl_mj.experiments.rl import ALGOS
 from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
@@ -140,7 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
                  "rerun=training scalars per iteration, demonstrations with r_theta, reward map",
                  task="navigate; with --resume the run's own")  # fmt: skip
-    p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz)")
+    p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz), or minari:ID (a local Minari "
+                   "dataset)")  # fmt: skip
     p.add_argument("--out", required=True, help="run directory")
     p.set_defaults(interrupted="finished iterations are kept: continue with "
                                "nirl-mj train --out {out} --resume")
@@ -150,6 +152,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
+
+    p = _command(sub, "rl", c.cmd_rl, "reference: train Stable-Baselines3 on the task's reward and phi(s) "
+                 "(needs nirl-mj[gym]; resumable)", "quiet", "overwrite")
+    p.set_defaults(interrupted="checkpoints are kept: continue with nirl-mj rl --out {out} --resume")
+    p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--steps", type=_positive_int, default=50_000, help="decisions to train (default: 50000)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (network, arenas)")
+    p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
                  "quiet", "overwrite", "rerun=every test episode (with r_theta and the reward map for --run)",
@@ -193,6 +204,15 @@ def build_parser() -> argparse.ArgumentParser:
     _experiment_command(
         sub, "sweep", "tasks/fig6.toml", "Fig. 6: success against obstacles and speed (CSV and line plot)"
     )
+
+    p = _command(sub, "export", c.cmd_export, "write a dataset as a Minari dataset (replayed in the "
+                 "environment: full observations, rewards, episode ends; needs nirl-mj[gym])", "quiet",
+                 "overwrite", task=None)
+    p.add_argument("path", help="dataset file (.npz)")
+    p.add_argument("--to", choices=["minari"], required=True, help="the format to write")
+    p.add_argument("--id", required=True, metavar="ID",
+                   help="Minari dataset id, e.g. nirl_mj/navigate/sensor-v0 (stored under "
+                   "$MINARI_DATASETS_PATH, default ~/.minari/datasets)")  # fmt: skip
 
     p = _command(
         sub, "inspect", c.cmd_inspect, "validate a dataset file and print its summary", "json", task=None

@@ -11,6 +11,10 @@ A run directory holds:
 - ``reward.json``: the selected reward (``{"kind", "theta": {name: value}}``);
 - ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``).
 
+A reinforcement-learning reference (``nirl-mj rl``, record ``"kind": "rl"``) holds ``run.json``,
+``model.zip`` (the Stable-Baselines3 model, written at every checkpoint and at the end) and
+``eval.json``.
+
 Every write is atomic (``nirl_mj.data.atomic``), so a killed process leaves each file
 either as it was or as it became. The record is written first and last: a run counts
 as finished once its record holds ``train_seeds`` and the policy file exists.
@@ -21,17 +25,18 @@ from __future__ import annotations
 import json
 import os
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from nirl_mj.data.atomic import leftover_temporaries, write_npz, write_text
+from nirl_mj.data.atomic import AtomicFile, leftover_temporaries, write_npz, write_text
 
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
+MODEL_FILE = "model.zip"
 POLICIES = ("selected", "last")
 RECORD_KEYS = ("task", "config", "seed", "demos", "demo_seeds", "validation_seeds")
 """What every run record holds from its start."""
@@ -165,6 +170,18 @@ class RunDir:
     def write_policy(self, selected: Mapping[str, np.ndarray], last: Mapping[str, np.ndarray]) -> None:
         arrays = {f"selected/{k}": v for k, v in selected.items()}
         write_npz(self.file(POLICY_FILE), arrays | {f"last/{k}": v for k, v in last.items()})
+
+    def model_file(self) -> Path:
+        """``model.zip`` of a reinforcement-learning run, with a clear error if it is missing."""
+        path = self.file(MODEL_FILE)
+        if not path.is_file():
+            raise RunError(f"{self.path} has no {MODEL_FILE}: its training has not reached a checkpoint")
+        return path
+
+    def write_model(self, save: Callable[[Path], object]) -> None:
+        """Writes ``model.zip`` atomically: ``save(path)`` writes a model to a temporary path."""
+        with AtomicFile(self.file(MODEL_FILE), ".zip") as target:
+            save(target.tmp)
 
     @staticmethod
     def _read_npz(path: Path, remedy: str) -> dict[str, np.ndarray]:

@@ -8,9 +8,11 @@ file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
 
 A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
-preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), or a reference policy
-(``"forward"``, ``"rule"``). The built-in ones are :data:`BUILTIN_METHODS`;
-``[method.NAME]`` tables add others or change built-in ones.
+preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), a reference policy
+(``"forward"``, ``"rule"``), or reinforcement learning on the task's reward (``"rl"``:
+Stable-Baselines3, ``nirl_mj.experiments.rl``; compare experiments only, needs
+``nirl-mj[gym]``). The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]`` tables add
+others or change built-in ones.
 
 ``[quick]`` holds values of the same keys that ``--quick`` uses instead (tables
 merged key by key): the smoke version of the same experiment.
@@ -26,13 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.experiments.rl import ALGOS
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.spec import SpecError
 
 KINDS = ("compare", "sweep")
-METHOD_KINDS = ("irl", "bc", "forward", "rule")
+METHOD_KINDS = ("irl", "bc", "forward", "rule", "rl")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
                "method", "demos", "config", "quick")  # fmt: skip
@@ -41,7 +44,8 @@ KEYS = {
     "sweep": (*COMMON_KEYS, "obstacles", "speeds"),
 }
 DEMO_KEYS = ("expert", "episodes")
-METHOD_KEYS = ("kind", "variant", "method", "config")
+METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps")
+RL_KEYS = ("algo", "steps")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
 SET_SECTIONS = ("arena", "robot", "sensing", "control")
@@ -55,13 +59,16 @@ class ExperimentError(SpecError):
 @dataclass(frozen=True)
 class MethodSpec:
     """One row of the results. ``variant``/``method``/``config`` matter for ``kind = "irl"`` only:
-    ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``."""
+    ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo`` and
+    ``steps`` (decisions of training) for ``kind = "rl"`` only."""
 
     name: str
     kind: str
     variant: str = "default"
     method: str = "nirl"
     config: dict = field(default_factory=dict)
+    algo: str = "ppo"
+    steps: int = 50_000
 
     @property
     def trains(self) -> bool:
@@ -82,6 +89,7 @@ BUILTIN_METHODS = {
     "BC": MethodSpec("BC", "bc"),
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
+    "PPO-reward": MethodSpec("PPO-reward", "rl", algo="ppo", steps=50_000),
 }
 """The methods an experiment may list without defining them."""
 
@@ -129,7 +137,7 @@ class Experiment:
             "seed": self.seed,
             # not "runs": a run's cells depend on its index alone, so more runs extend an experiment
             "tests": self.tests,
-            "methods": [dataclasses.asdict(m) for m in self.methods],
+            "methods": [_method_identity(m) for m in self.methods],
             "expert": self.expert,
             "demos": self.demos,
             "config": self.config,
@@ -230,6 +238,10 @@ def from_dict(
         quick=quick,
     )  # fmt: skip
     if kind == "sweep":
+        rl = [m.name for m in methods if m.kind == "rl"]
+        if rl:
+            raise ExperimentError(f'{where("methods")}: {", ".join(rl)}: kind = "rl" runs in compare '
+                                  "experiments only")  # fmt: skip
         if not experiment.obstacles or not experiment.speeds:
             raise ExperimentError(f"{source}: a sweep needs non-empty obstacles and speeds lists")
         for key, names in (("obstacles", [str(n) for n in experiment.obstacles]),
@@ -280,12 +292,16 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         changes = _learner_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")
         if kind != "irl" and (changes or "variant" in table or "method" in table):
             raise ExperimentError(f'{where}: variant, method and config apply to kind = "irl" only')
+        if kind != "rl" and any(k in table for k in RL_KEYS):
+            raise ExperimentError(f'{where}: algo and steps apply to kind = "rl" only')
         method = MethodSpec(
             name,
             kind,
             _choice(table.get("variant", default.variant), VARIANTS, f"{where}.variant"),
             _choice(table.get("method", default.method), METHODS, f"{where}.method"),
             changes,
+            _choice(table.get("algo", default.algo), ALGOS, f"{where}.algo"),
+            _int(table.get("steps", default.steps), f"{where}.steps", 1),
         )
     if method.trains:
         try:
@@ -293,6 +309,16 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         except (TypeError, ValueError) as exc:
             raise ExperimentError(f"{where}: {exc}") from None
     return method
+
+
+def _method_identity(method: MethodSpec) -> dict:
+    """A method as JSON for the experiment's identity; ``algo`` and ``steps`` only for kind "rl", so
+    that the identity of an experiment written before they existed is unchanged."""
+    data = dataclasses.asdict(method)
+    if method.kind != "rl":
+        for key in RL_KEYS:
+            del data[key]
+    return data
 
 
 def _learner_changes(table: dict, where: str) -> dict:

@@ -181,6 +181,16 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
                 f"{job.run_dir}: test arenas seen in training: {sorted(seen & set(job.test_seeds))}"
             )
         return policy
+    if kind == "rl":
+        from nirl_mj.experiments.rl import ensure_rl_trained, load_rl_policy
+
+        if train:
+            ensure_rl_trained(job.run_dir, job.task, job.method.algo, job.method.steps, job.seed)
+        policy, record = load_rl_policy(job.run_dir)
+        seen = set(record["train_seeds"]) & set(job.test_seeds)
+        if seen:
+            raise RuntimeError(f"{job.run_dir}: test arenas seen in training: {sorted(seen)}")
+        return policy
     if kind == "bc":
         from nirl_mj.data.dataset import load_dataset
         from nirl_mj.learn.bc import behaviour_cloning

@@ -37,6 +37,20 @@ from nirl_mj.sim.task import make_env
 Policy = Callable[[np.ndarray], int]
 
 
+MINARI = "minari:"
+"""``--demos minari:ID``: a local Minari dataset (``nirl_mj.gym.minari_export``) instead of a file."""
+
+
+def load_demonstrations(source: str | os.PathLike) -> list[Trajectory]:
+    """The trajectories of a dataset file (docs/DATASET.md), or of the local Minari dataset ID for
+    ``minari:ID`` (written by ``nirl-mj export``; needs the optional extra ``nirl-mj[gym]``)."""
+    if str(source).startswith(MINARI):
+        from nirl_mj.gym.minari_export import load_minari
+
+        return load_minari(str(source)[len(MINARI) :])
+    return load_dataset(source)
+
+
 def run_config(record: dict[str, Any]) -> LearnerConfig:
     """The learner config of a run record."""
     try:
@@ -99,12 +113,14 @@ def train(
 ) -> dict:
     """Trains (or resumes) the configured method in ``run_dir``; returns the run record."""
     run = RunDir(run_dir)
-    demos = load_dataset(demos_path)
+    demos = load_demonstrations(demos_path)
+    minari = str(demos_path).startswith(MINARI)
     record = {
         "task": task.to_dict(),
         "config": config.to_dict(),
         "seed": seed,
-        "demos": str(Path(demos_path).resolve()),  # a resume may run from another directory
+        # a resume may run from another directory
+        "demos": str(demos_path) if minari else str(Path(demos_path).resolve()),
         "demos_sha256": dataset_digest(demos),  # the demonstrations by content: a resume must use the same
         "demo_seeds": [t.arena_seed for t in demos],
         "validation_seeds": validation_seeds(config, seed),

@@ -508,7 +508,7 @@ def snapshot_strip(
             if timestep.last():
                 from nirl_mj.sim.task import Outcome
 
-                text += f": {Outcome(int(timestep.observation['outcome'])).name.lower()}"
+                text += f": {Outcome(int(timestep.observation['outcome'][0])).name.lower()}"
             images.append(_label(view.scene(), text))
 
     run_episode(env, agent, seed, on_step)

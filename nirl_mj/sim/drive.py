@@ -31,6 +31,7 @@ __all__ = [
     "DriveController",
     "action_profile",
     "body_twist",
+    "max_yaw_rate",
     "rate_limit",
     "wheel_speeds",
 ]
@@ -211,6 +212,12 @@ def action_profile(
     return out
 
 
+def max_yaw_rate(period: float) -> float:
+    """The largest yaw rate (rad/s) of a continuous action: held for a whole decision of
+    ``period`` seconds it turns 60 degrees, as the sharpest discrete action does."""
+    return math.radians(60.0) / period
+
+
 def rate_limit(
     previous: np.ndarray | list | tuple,
     targets: np.ndarray | list | tuple,
@@ -303,5 +310,20 @@ class DriveController:
             if len(self._plans) >= self._CACHE_SIZE:
                 self._plans.clear()
             self._plans[key] = commands
+        self._last = commands[-1].copy()
+        return commands
+
+    def plan_twist(
+        self, twist: tuple[float, float], period: float, cmd_dt: float, max_accel: float
+    ) -> np.ndarray:
+        """Wheel-speed commands for one decision of a continuous action: ``twist`` (forward m/s,
+        yaw rate rad/s), i.e. the body twist ``[forward, 0, yaw_rate]`` held for the decision ->
+        IK -> the same rate limit as :meth:`plan` (so a turn starts with the wheels' acceleration
+        ramp). Shape (n_cmd, 3) wheel speeds (rad/s), one row per command period."""
+        forward, yaw_rate = twist
+        targets = np.repeat(
+            wheel_speeds([forward, 0.0, yaw_rate])[None, :], _n_commands(period, cmd_dt), axis=0
+        )
+        commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
         self._last = commands[-1].copy()
         return commands

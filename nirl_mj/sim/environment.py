@@ -57,3 +57,8 @@ class Environment(composer.Environment):
             self._strip_singleton_obs_buffer_dim,
             pad,
         )
+
+    def close(self) -> None:
+        """Frees the physics; a second call does nothing (composer's own raises AttributeError)."""
+        if self._physics is not None:
+            super().close()

@@ -53,6 +53,11 @@ def run_episode(
     Raises :class:`EpisodeAbandoned` (with the episode so far) if the agent returns None
     instead of an action."""
     spec = env.task.spec
+    if spec.control.actions != "discrete":
+        raise ValueError(
+            f"task {spec.name} has continuous actions; episodes are recorded (as trajectories, datasets, "
+            "evaluations) with the six discrete actions only: drive it through nirl_mj.gym (NavigationEnv)"
+        )
     env.random_state.seed(seed)
     timestep = env.reset()
     agent.reset(env, timestep)
@@ -74,5 +79,5 @@ def run_episode(
 
 def _outcome(timestep: dm_env.TimeStep) -> Outcome:
     """How the episode stands; still running counts as a timeout (an episode cut short)."""
-    outcome = Outcome(int(timestep.observation["outcome"]))
+    outcome = Outcome(int(timestep.observation["outcome"][0]))
     return Outcome.TIMEOUT if outcome == Outcome.RUNNING else outcome

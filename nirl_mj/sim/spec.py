@@ -125,7 +125,8 @@ class SensingSpec:
 
 @dataclass(frozen=True)
 class ControlSpec:
-    """Timing and speed of the discrete actions."""
+    """Timing and speed of the actions; ``actions`` says which kind (six discrete or a continuous
+    twist)."""
 
     speed: float = field(default=2.0, metadata=_check(0.0, 5.0, open_low=True))
     decision_period: float = field(default=0.5, metadata=_check(0.0, open_low=True))
@@ -136,6 +137,8 @@ class ControlSpec:
     max_accel: float = field(default=4.0, metadata=_check(0.0, open_low=True))
     step_budget: int = field(default=0, metadata=_check(0))
     budget_factor: float = field(default=3.0, metadata=_check(1.0))
+    # "continuous": a bounded (forward speed m/s, yaw rate rad/s) per decision (docs/TASKS.md)
+    actions: str = field(default="discrete", metadata={**_choices("discrete", "continuous"), **_OMIT_DEFAULT})
 
 
 @dataclass(frozen=True)

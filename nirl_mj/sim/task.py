@@ -24,8 +24,9 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from nirl_mj.data import features
+from nirl_mj.sim import observations
 from nirl_mj.sim.arena import NavigationArena
-from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist, max_yaw_rate
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
 from nirl_mj.sim.robot import Robotino
@@ -79,6 +80,7 @@ class NavigationTask(composer.Task):
         self._substeps_per_command = round(control.command_period / spec.physics_timestep)
         self._commands_per_decision = round(control.decision_period / control.command_period)
         self._drive = DriveController()
+        self._continuous = control.actions == "continuous"
         self._budget = spec.step_budget
         # Composer reads the observables once before the first episode.
         self._layout: Layout | None = None
@@ -127,7 +129,12 @@ class NavigationTask(composer.Task):
     def observables(self):
         return self._observables
 
-    def action_spec(self, physics) -> specs.DiscreteArray:
+    def action_spec(self, physics) -> specs.DiscreteArray | specs.BoundedArray:
+        """``DiscreteArray(6)``, or with ``control.actions = "continuous"`` a ``BoundedArray`` (2,):
+        forward speed in [-speed, speed] m/s and yaw rate in [-w, w] rad/s, w the rate that turns
+        60 degrees in one decision (:func:`~nirl_mj.sim.drive.max_yaw_rate`)."""
+        if self._continuous:
+            return continuous_action_spec(self._spec)
         return specs.DiscreteArray(num_values=features.N_ACTIONS, dtype=np.int64, name="action")
 
     def get_reward_spec(self) -> specs.Array:
@@ -137,25 +144,23 @@ class NavigationTask(composer.Task):
         return specs.BoundedArray(shape=(), dtype=np.float64, minimum=0.0, maximum=1.0, name="discount")
 
     def _make_observables(self) -> dict[str, observable.Observable]:
+        width, height = self._spec.arena.size
+        diagonal = math.hypot(width, height)
         obs = {
             "features": lambda physics: self._phi.copy(),
             "ranges": lambda physics: np.minimum(self._scan.ranges, self._spec.sensing.range),
             "rays": lambda physics: np.minimum(self._scan.rays, self._spec.sensing.range),
             "danger": lambda physics: self._danger.copy(),
             "wall": lambda physics: self._scan.wall.astype(np.int8),
-            "pose": lambda physics: self._pose.copy(),
+            "pose": lambda physics: observations.arena_pose(self._pose, width, height),
             "target": lambda physics: np.asarray(self._spec.arena.target, dtype=np.float64),
-            "target_distance": lambda physics: np.float64(self._scan.target_distance),
-            "target_bearing": lambda physics: np.float64(_wrap(self._scan.bearing)),
-            "outcome": lambda physics: np.int32(self._outcome),
-            "steps": lambda physics: np.int32(self._steps),
+            "target_distance": lambda physics: np.array([min(self._scan.target_distance, diagonal)]),
+            "target_bearing": lambda physics: np.array([_wrap(self._scan.bearing)]),
+            "outcome": lambda physics: np.array([self._outcome], dtype=np.int32),
+            "steps": lambda physics: np.array([self._steps], dtype=np.int32),
         }
-        out = {}
-        for name, fn in obs.items():
-            o = observable.Generic(fn)
-            o.enabled = True
-            out[name] = o
-        return out
+        bounds = observations.observation_specs(self._spec)
+        return {name: observations.Bounded(fn, bounds[name]) for name, fn in obs.items()}
 
     # -- episode ---------------------------------------------------------------------
 
@@ -199,11 +204,17 @@ class NavigationTask(composer.Task):
         self._sense(physics)
 
     def before_step(self, physics, action, random_state) -> None:
-        action = _checked_action(action)
         control = self._spec.control
-        wheel_commands = self._drive.plan(
-            action, control.speed, control.decision_period, control.command_period, control.max_accel
-        )
+        if self._continuous:
+            twist = _checked_twist(action, continuous_action_spec(self._spec))
+            wheel_commands = self._drive.plan_twist(
+                twist, control.decision_period, control.command_period, control.max_accel
+            )
+        else:
+            wheel_commands = self._drive.plan(
+                _checked_action(action), control.speed, control.decision_period, control.command_period,
+                control.max_accel,
+            )  # fmt: skip
         checked = self.command_hook is not None or not self._nothing_within_reach()
         self._run_decision(physics, wheel_commands, checked=checked)
 
@@ -381,6 +392,30 @@ def _checked_action(action) -> int:
     return int(a)
 
 
+def continuous_action_spec(spec: TaskSpec) -> specs.BoundedArray:
+    """The continuous action of a task: (forward speed m/s, yaw rate rad/s), shape (2,)."""
+    speed, yaw = spec.control.speed, max_yaw_rate(spec.control.decision_period)
+    return specs.BoundedArray((2,), np.float64, [-speed, -yaw], [speed, yaw], name="action")
+
+
+def _checked_twist(action, bounds: specs.BoundedArray) -> tuple[float, float]:
+    """A continuous action as (forward m/s, yaw rate rad/s), or a clear error. A value a float32
+    rounding beyond a bound (Gymnasium and Stable-Baselines3 act in float32) counts as the bound."""
+    accepted = (f"(forward speed m/s in [{bounds.minimum[0]:g}, {bounds.maximum[0]:g}], yaw rate rad/s in "
+                f"[{bounds.minimum[1]:.4g}, {bounds.maximum[1]:.4g}])")  # fmt: skip
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.full(3, np.nan)
+    if a.shape != (2,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"a continuous action is two finite numbers {accepted}, got {action!r}")
+    slack = 1e-6 * np.abs(bounds.maximum)
+    if np.any(a < bounds.minimum - slack) or np.any(a > bounds.maximum + slack):
+        raise ValueError(f"continuous action {a.tolist()} out of range: accepted {accepted}")
+    a = np.clip(a, bounds.minimum, bounds.maximum)
+    return float(a[0]), float(a[1])
+
+
 def make_env(
     task: str | TaskSpec = "navigate", seed: int | np.random.RandomState | None = None
 ) -> dm_env.Environment:
@@ -393,9 +428,10 @@ def make_env(
     sensed), ``rays`` (9 * rays_per_sensor,) the same per ray (sensor-major,
     ray angles in :func:`nirl_mj.sim.sensing.ray_angles`), ``danger`` (9,) levels
     0..7, ``wall`` (9,) flags, ``pose`` (x, y, yaw) metres/radians, ``target``
-    (x, y) metres, ``target_distance`` metres, ``target_bearing`` radians in
+    (x, y) metres, ``target_distance`` (1,) metres, ``target_bearing`` (1,) radians in
     (-pi, pi] counter-clockwise from the robot's front,
-    ``outcome`` (an :class:`Outcome`), ``steps`` decisions taken.
+    ``outcome`` (1,) an :class:`Outcome`, ``steps`` (1,) decisions taken. Every spec is a
+    ``BoundedArray`` with the observation's range (:mod:`nirl_mj.sim.observations`).
     """
     spec = load_task(task)
     return Environment(

@@ -1,0 +1,212 @@
+"""A reinforcement-learning reference: Stable-Baselines3 on the task's own reward.
+
+NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
+phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
+tests (``nirl-mj eval --run RUN``). The environment is ``nirl_mj.gym.NavigationEnv``; every
+training episode draws the arena of ``seeds.domain_seed("train", seed, k)`` for its k-th episode
+(:class:`~nirl_mj.gym.wrappers.ArenaSeeds`), recorded as the run's ``train_seeds``, so held-out
+tests skip them like a NIRL run's.
+
+The run directory (``nirl_mj.data.rundir``) holds ``run.json`` (``"kind": "rl"``, the algorithm,
+its settings, the task, seed and arenas), ``model.zip`` (Stable-Baselines3's file, rewritten
+atomically at every checkpoint) and ``eval.json``. A resume continues from the last checkpoint
+with the arenas that follow; it is not bit-identical to an uninterrupted run (the episode in
+progress and PPO's rollout buffer are not saved).
+
+Needs the optional extra ``nirl-mj[gym]``; imported only by the commands that train or load an
+RL run, so the core install does not need it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from nirl_mj.data.rundir import MODEL_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.experiments.seeds import domain_seed
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.observations import feature_bounds
+
+ALGOS = ("ppo", "dqn")
+SETTINGS: dict[str, dict[str, Any]] = {
+    # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
+    "ppo": {"n_steps": 1024, "batch_size": 64, "n_epochs": 10, "gamma": 0.99, "learning_rate": 3e-4},
+    "dqn": {"buffer_size": 100_000, "learning_starts": 1000, "gamma": 0.99, "learning_rate": 1e-4,
+            "exploration_fraction": 0.2, "target_update_interval": 1000},
+}  # fmt: skip
+"""Each algorithm's settings (recorded in the run; a resume must use the same)."""
+
+_SCALE = 1.0 / feature_bounds()[1]  # phi / its upper bounds: every input in [0, 1]
+
+
+def scaled(phi: np.ndarray) -> np.ndarray:
+    """phi(s) (..., 16) as the networks see it, float32 in [0, 1]."""
+    return (np.asarray(phi, dtype=np.float32) * _SCALE).astype(np.float32)
+
+
+def _algorithm(algo: str):
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}: accepted: {', '.join(ALGOS)}")
+    import stable_baselines3
+
+    return {"ppo": stable_baselines3.PPO, "dqn": stable_baselines3.DQN}[algo]
+
+
+def _environment(task: specs.TaskSpec, seed: int, first_episode: int):
+    """One training environment, phi(s) scaled, arenas from the train domain; returns it and its
+    :class:`ArenaSeeds`."""
+    import gymnasium
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from nirl_mj.gym.env import NavigationEnv
+    from nirl_mj.gym.wrappers import ArenaSeeds
+
+    env = NavigationEnv(task, observation="features")
+    arenas = ArenaSeeds(env, lambda k: domain_seed("train", seed, k), start=first_episode)
+    box = gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)
+    wrapped = gymnasium.wrappers.TransformObservation(arenas, scaled, box)
+    return DummyVecEnv([lambda: Monitor(wrapped, info_keywords=("is_success",))]), arenas
+
+
+def train_rl(
+    run_dir: str | os.PathLike,
+    task: specs.TaskSpec,
+    algo: str = "ppo",
+    steps: int = 50_000,
+    seed: int = 0,
+    resume: bool = False,
+    checkpoint_every: int = 10_000,
+    on_steps: Callable[[int, dict], None] | None = None,
+) -> dict:
+    """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
+
+    ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
+    100 training episodes)."""
+    cls = _algorithm(algo)
+    if algo == "dqn" and task.control.actions != "discrete":
+        raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
+    if steps < 1:
+        raise ValueError(f"steps = {steps}: must be >= 1")
+    run = RunDir(run_dir)
+    record = {"kind": "rl", "algo": algo, "config": {"algo": algo, **SETTINGS[algo]}, "steps": steps,
+              "task": task.to_dict(), "seed": seed, "demos": None, "demo_seeds": [], "validation_seeds": [],
+              "train_seeds": [], "steps_done": 0}  # fmt: skip
+    record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
+    if resume:
+        saved = run.read_record()
+        for key in ("kind", "config", "task", "seed"):
+            if saved.get(key) != record[key]:
+                raise RunError(f"{run} was trained with another {key}; resume with the same options, "
+                               "or train in a new --out")  # fmt: skip
+        run.remove_leftovers()
+        record = {**saved, "steps": steps}  # a resume may train on to a larger total
+        if record["steps_done"] >= steps:
+            return record
+    elif not run.is_empty():
+        raise RunError(f"{run} exists and is not empty; pass --resume to continue it, --overwrite to "
+                       "replace it, or choose another --out")  # fmt: skip
+    else:
+        run.write_record(record)
+
+    venv, arenas = _environment(task, seed, len(record["train_seeds"]))
+    if resume and run.file(MODEL_FILE).is_file():
+        model = cls.load(run.model_file(), env=venv, device="cpu")
+    else:
+        model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **SETTINGS[algo])
+    done_before = list(record["train_seeds"])
+
+    def checkpoint() -> None:
+        run.write_model(model.save)
+        record.update(steps_done=int(model.num_timesteps), train_seeds=[*done_before, *arenas.used])
+        run.write_record(record)
+
+    model.learn(steps - record["steps_done"], callback=_Progress(checkpoint, checkpoint_every, on_steps),
+                reset_num_timesteps=not resume)  # fmt: skip
+    checkpoint()
+    venv.close()
+    return record
+
+
+def _Progress(checkpoint: Callable[[], None], every: int, on_steps) -> Any:
+    """A Stable-Baselines3 callback: progress after every step, a checkpoint every ``every`` steps."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Progress(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.outcomes: list[bool] = []
+
+        def _on_step(self) -> bool:
+            for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
+                if done:
+                    self.outcomes.append(bool(info.get("is_success")))
+            if on_steps:
+                recent = self.outcomes[-100:]
+                on_steps(self.training_env.num_envs, {"episodes": len(self.outcomes),
+                         "success": sum(recent) / len(recent) if recent else float("nan")})  # fmt: skip
+            if self.num_timesteps % every == 0:
+                checkpoint()
+            return True
+
+    return Progress()
+
+
+def ensure_rl_trained(
+    run_dir: str | os.PathLike, task: specs.TaskSpec, algo: str, steps: int, seed: int
+) -> dict:
+    """Trains the run, resumes it from its last checkpoint, or returns a finished one's record (an
+    experiment's cell: ``nirl_mj.experiments.protocol.policy_of``)."""
+    run = RunDir(run_dir)
+    if run.is_run:
+        record = run.read_record()
+        if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
+            return record
+    return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run)
+
+
+def is_rl_run(record: dict) -> bool:
+    return record.get("kind") == "rl"
+
+
+def load_rl_policy(
+    run_dir: str | os.PathLike, sampled: bool = True, seed: int = 0
+) -> tuple[Callable[[np.ndarray], int | np.ndarray], dict]:
+    """The trained RL policy on phi(s) and the run's record.
+
+    PPO's policy is a distribution over the six actions; with ``sampled`` (the default for PPO)
+    each action is drawn from it with a generator seeded by ``seed``, so an evaluation is
+    reproducible. Its mode (``sampled=False``) is a poor driver here: measured on 100 held-out
+    arenas of navigate after 50,000 decisions, the mode alternates right60/left30 and circles
+    3-5 m from the target (0 % success), where sampling reaches the target (README). DQN, and
+    PPO with continuous actions, act by their deterministic mode."""
+    run = RunDir(run_dir)
+    record = run.read_record()
+    if not is_rl_run(record):
+        raise RunError(f"{run} is not an RL run ({RUN_FILE} has no kind = rl)")
+    model = _algorithm(record["algo"]).load(run.model_file(), device="cpu")
+    discrete_ppo = (
+        record["algo"] == "ppo" and record["task"]["control"].get("actions", "discrete") == "discrete"
+    )
+    if sampled and discrete_ppo:
+        import torch
+
+        rng = np.random.default_rng(seed)
+
+        def sample(phi: np.ndarray) -> int:
+            with torch.no_grad():
+                dist = model.policy.get_distribution(torch.as_tensor(scaled(phi))[None])
+            probs = dist.distribution.probs[0].numpy().astype(np.float64)
+            return int(rng.choice(len(probs), p=probs / probs.sum()))
+
+        return sample, record
+
+    def mode(phi: np.ndarray) -> int | np.ndarray:
+        action, _ = model.predict(scaled(phi), deterministic=True)
+        return action if np.ndim(action) else int(action)  # continuous: (forward, yaw rate)
+
+    return mode, record

@@ -1,0 +1,174 @@
+"""Datasets as Minari datasets, and back.
+
+Our dataset files (docs/DATASET.md) keep phi(s), ranges, poses and actions, not every observation,
+reward or episode end. But an episode is a function of its arena seed and its actions, so
+:func:`export_minari` replays each trajectory's actions in a ``NavigationEnv`` reset with its
+arena seed, under Minari's ``DataCollector``: the Minari dataset gets the full observation Dict,
+rewards, terminations, truncations and the environment's spec (its id and the task as a dict), so
+``minari.load_dataset(ID).recover_environment()`` builds the same environment and the episodes
+replay to the same observations bit for bit (the episode's seed is its arena seed). Every
+replayed state is checked against the file's phi(s), ranges and poses; a trajectory that does
+not replay (recorded by another version of the simulation) is an error naming it.
+
+:func:`load_minari` reads such a dataset back as trajectories (``nirl-mj train --demos
+minari:ID``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from nirl_mj.data.trajectory import Trajectory, task_json
+from nirl_mj.sim.spec import SpecError, from_dict
+from nirl_mj.sim.task import Outcome
+
+PREFIX = "minari:"
+"""``--demos minari:ID`` names a local Minari dataset instead of a dataset file."""
+
+
+class MinariError(ValueError):
+    """A Minari dataset is missing, would be overwritten, or cannot hold or give our episodes."""
+
+
+def export_minari(
+    trajectories: Sequence[Trajectory],
+    dataset_id: str,
+    overwrite: bool = False,
+    on_episode: Callable[[int], None] | None = None,
+):
+    """Writes ``trajectories`` (one task) as the local Minari dataset ``dataset_id``
+    (``namespace/env/name-vN``, e.g. ``nirl_mj/navigate/sensor-v0``); returns the
+    ``MinariDataset``. Refuses an existing dataset unless ``overwrite``."""
+    import gymnasium
+    import minari
+
+    _check_id(dataset_id)
+    if not trajectories:
+        raise MinariError("the dataset holds no trajectory")
+    tasks = {task_json(t.task) for t in trajectories}
+    if len(tasks) > 1:
+        raise MinariError(f"the dataset holds {len(tasks)} tasks; a Minari dataset has one environment: "
+                          "export each task's trajectories separately")  # fmt: skip
+    exists = dataset_id in minari.list_local_datasets()
+    if exists and not overwrite:
+        raise MinariError(f"Minari dataset {dataset_id} exists; pass --overwrite to replace it")
+    task = trajectories[0].task
+    env = gymnasium.make(_env_id(task), task=task)
+    try:
+        buffers = []
+        for i, trajectory in enumerate(trajectories):
+            buffers.append(_replay(env, trajectory, i))
+            if on_episode:
+                on_episode(i)
+        demonstrators = sorted({t.demonstrator for t in trajectories})
+        if exists:  # only now: a dataset that does not replay leaves the old one in place
+            minari.delete_dataset(dataset_id)
+        with warnings.catch_warnings():  # author, e-mail, permalink, eval_env: optional, not ours to guess
+            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+            return minari.create_dataset_from_buffers(
+                dataset_id,
+                buffers,
+                env=env,
+                algorithm_name=", ".join(demonstrators),
+                description=f"{len(trajectories)} episodes of nirl-mj task {task.get('name')} by "
+                f"{', '.join(demonstrators)}, replayed from their arena seeds and actions",
+                requirements=["nirl-mj[gym]"],
+            )
+    finally:
+        env.close()
+
+
+def _env_id(task: dict) -> str:
+    """The registered id of a shipped task's name, else Navigate's (the task dict decides anyway)."""
+    from nirl_mj.gym.registration import env_id, task_names
+
+    return env_id(task.get("name")) if task.get("name") in task_names() else env_id("navigate")
+
+
+def _replay(env, trajectory: Trajectory, index: int):
+    """Runs ``trajectory``'s actions in ``env`` from its arena seed, checking every state; returns
+    the episode as a Minari ``EpisodeBuffer``. (Built here: Minari's ``DataCollector`` needs jax.)"""
+    from minari.data_collector import EpisodeBuffer
+
+    seed = int(trajectory.arena_seed)
+    obs, _ = env.reset(seed=seed)
+    _check_state(obs, trajectory, 0, index)
+    observations = {key: [value] for key, value in obs.items()}
+    rewards, terminations, truncations = [], [], []
+    for t, action in enumerate(trajectory.actions.tolist()):
+        if terminations[-1:] == [True] or truncations[-1:] == [True]:
+            raise MinariError(f"trajectory {index} (arena {seed}) ended after {t} of its "
+                              f"{len(trajectory)} decisions when replayed")  # fmt: skip
+        obs, reward, terminated, truncated, _ = env.step(np.int64(action))
+        _check_state(obs, trajectory, t + 1, index)
+        for key, value in obs.items():
+            observations[key].append(value)
+        rewards.append(reward)
+        terminations.append(terminated)
+        truncations.append(truncated)
+    if not (terminations[-1:] == [True] or truncations[-1:] == [True]):
+        raise MinariError(f"trajectory {index} (arena {seed}) does not end after its {len(trajectory)} "
+                          "decisions (abandoned?); Minari keeps finished episodes only")  # fmt: skip
+    return EpisodeBuffer(id=index, seed=seed, observations=observations,
+                         actions=[np.int64(a) for a in trajectory.actions.tolist()], rewards=rewards,
+                         terminations=terminations, truncations=truncations, infos={})  # fmt: skip
+
+
+def _check_state(obs: dict, trajectory: Trajectory, t: int, index: int) -> None:
+    same = (
+        np.array_equal(obs["features"], trajectory.features[t])
+        and np.array_equal(obs["ranges"].astype(np.float32), trajectory.ranges[t])
+        and np.array_equal(obs["pose"], trajectory.poses[t])
+    )
+    if not same:
+        raise MinariError(f"trajectory {index} (arena {trajectory.arena_seed}) does not replay: state "
+                          f"{t} differs from the file (recorded by another simulation version?)")  # fmt: skip
+
+
+def load_minari(dataset_id: str) -> list[Trajectory]:
+    """The episodes of the local Minari dataset ``dataset_id`` (written by :func:`export_minari`)
+    as trajectories."""
+    import minari
+
+    _check_id(dataset_id)
+    if dataset_id not in minari.list_local_datasets():
+        raise MinariError(f"no local Minari dataset {dataset_id!r} (local: "
+                          f"{', '.join(sorted(minari.list_local_datasets())) or 'none'}); write one with "
+                          "nirl-mj export D.npz --to minari --id ID")  # fmt: skip
+    dataset = minari.load_dataset(dataset_id)
+    env_spec = dataset.spec.env_spec
+    if env_spec is None or not isinstance(env_spec.kwargs.get("task"), dict):
+        raise MinariError(f"Minari dataset {dataset_id} was not written by nirl-mj (no task in its env spec)")
+    try:
+        spec = from_dict(env_spec.kwargs["task"], f"Minari dataset {dataset_id}")
+    except SpecError as exc:
+        raise MinariError(str(exc)) from None
+    seeds = [m["seed"] for m in dataset.storage.get_episode_metadata(dataset.episode_indices)]
+    demonstrator = dataset.storage.metadata.get("algorithm_name") or "minari"
+    out = []
+    for episode, seed in zip(dataset.iterate_episodes(), seeds, strict=True):
+        obs = episode.observations
+        n = len(episode.actions)
+        outcome = Outcome(int(obs["outcome"][-1, 0]))
+        out.append(Trajectory(
+            features=obs["features"], actions=np.asarray(episode.actions, dtype=np.int8),
+            ranges=obs["ranges"].astype(np.float32), poses=obs["pose"],
+            times=np.arange(n + 1) * spec.control.decision_period, arena_seed=int(seed), task=spec,
+            speed=spec.control.speed, outcome=outcome if outcome != Outcome.RUNNING else Outcome.TIMEOUT,
+            demonstrator=demonstrator,
+        ))  # fmt: skip
+    return out
+
+
+def _check_id(dataset_id: str) -> None:
+    from minari.dataset.minari_dataset import parse_dataset_id
+
+    try:
+        parse_dataset_id(dataset_id)
+    except ValueError as exc:
+        raise MinariError(
+            f"Minari dataset id {dataset_id!r}: {exc} (e.g. nirl_mj/navigate/sensor-v0)"
+        ) from None

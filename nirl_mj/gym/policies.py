@@ -1,0 +1,97 @@
+"""Experts and reference policies as ``policy(observation) -> action`` for a Gymnasium loop.
+
+An expert (``nirl_mj.experts``) is a ``sim.episode.Agent``: reset with the dm_env environment
+and its first ``TimeStep``, then asked for an action per ``TimeStep``. :class:`ExpertPolicy`
+wraps one so that it takes the observation a ``NavigationEnv`` returns (the full Dict)::
+
+    env = gymnasium.make("nirl_mj/Navigate-v0")
+    policy = ExpertPolicy("sensor")
+    obs, info = env.reset(seed=0)
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        if terminated or truncated:
+            break
+
+A new episode is recognised by ``steps == 0`` in the observation, which resets the expert (the
+sensor expert forgets its memory). The sensor expert and the reference policies read the
+observation only; the planner reads the arena, and the noisy expert draws its episode's noise
+seed from the environment's random state, so both need ``env`` (the Gymnasium environment
+they drive). The reference policies (``rule``, ``forward``) need ``features`` only and also take
+the bare phi(s) array (an environment made with ``observation="features"``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import dm_env
+import numpy as np
+
+from nirl_mj.experts import EXPERT_KINDS, make_expert
+from nirl_mj.experts.policies import POLICIES
+from nirl_mj.sim.drive import ACTIONS
+
+_NEEDS_ENV = ("planner", "noisy")
+
+
+class ExpertPolicy:
+    """The expert ``kind`` (:data:`nirl_mj.experts.EXPERT_KINDS`) as ``policy(obs) -> action``.
+
+    ``env``: the Gymnasium environment the policy drives (its ``unwrapped.dm_env``), required by
+    the planner and the noisy expert. ``options`` configure the noisy one (``base``, ``slip``,
+    ``random``, ``seed``: :func:`nirl_mj.experts.make_expert`).
+    """
+
+    def __init__(self, kind: str, env=None, **options) -> None:
+        if kind not in EXPERT_KINDS:
+            raise ValueError(f"unknown expert {kind!r}: accepted: {', '.join(EXPERT_KINDS)}")
+        if (kind in _NEEDS_ENV or options.get("base") == "planner") and env is None:
+            raise ValueError(f"the {kind} expert reads the environment: give env=the Gymnasium environment")
+        self.kind = kind
+        self._expert = make_expert(kind, **options)
+        self._env = env
+
+    def __call__(self, observation: Mapping[str, np.ndarray]) -> int:
+        if not isinstance(observation, Mapping) or "steps" not in observation:
+            raise ValueError(
+                f"the {self.kind} expert takes the full Dict observation of a nirl_mj environment "
+                "(made without observation=...)"
+            )
+        if int(observation["steps"][0]) == 0:
+            timestep = dm_env.restart(observation)
+            self._expert.reset(self._dm_env(), timestep)
+        else:
+            timestep = dm_env.transition(0.0, observation)
+        return int(self._expert.act(timestep))
+
+    def _dm_env(self):
+        return None if self._env is None else self._env.unwrapped.dm_env
+
+
+def reference_policy(name: str, env=None):
+    """A reference policy of :data:`nirl_mj.experts.policies.POLICIES` (``rule``, ``forward``) as
+    ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself. Given the
+    ``env`` it drives, of a task with continuous actions, it acts with :func:`twist_of` its
+    discrete choice."""
+    if name not in POLICIES:
+        raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
+    on_phi = POLICIES[name]
+    task = None if env is None else env.unwrapped.task_spec
+    continuous = task is not None and task.control.actions == "continuous"
+
+    def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:
+        phi = observation["features"] if isinstance(observation, Mapping) else observation
+        action = int(on_phi(np.asarray(phi)))
+        return twist_of(action, task) if continuous else action
+
+    policy.__name__ = name
+    return policy
+
+
+def twist_of(action: int, task) -> np.ndarray:
+    """The continuous action closest to discrete ``action`` on ``task`` (a ``TaskSpec``): float32
+    (forward speed m/s, yaw rate rad/s), the discrete action's speed and its turn spread evenly
+    over the decision (the discrete action ramps its yaw rate; both end at the same heading)."""
+    move = ACTIONS[action]
+    return np.array([move.direction * task.control.speed, move.turn / task.control.decision_period],
+                    dtype=np.float32)  # fmt: skip

@@ -1,0 +1,239 @@
+"""The Gymnasium environments (nirl_mj.gym): ids, spaces, seeding, episode ends, render, errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")  # the optional extra nirl-mj[gym]
+
+import nirl_mj  # noqa: E402  (registers the ids)
+from nirl_mj.gym.registration import env_id, task_names  # noqa: E402
+from nirl_mj.sim.episode import run_episode  # noqa: E402
+from nirl_mj.sim.observations import NAMES  # noqa: E402
+
+SMALL = ["arena.size=[24.0, 24.0]", "arena.start=[4.0, 4.0]", "arena.target=[20.0, 20.0]",
+         "arena.static_obstacles=3", "arena.clear_radius=3.0", 'robot.drive="planar"']  # fmt: skip
+
+
+def test_every_shipped_task_file_has_an_id_and_experiment_files_none():
+    assert task_names() == ["dynamic", "navigate", "structured"]
+    ids = {k for k in gymnasium.registry if k.startswith("nirl_mj/")}
+    assert ids == {"nirl_mj/Dynamic-v0", "nirl_mj/Navigate-v0", "nirl_mj/Structured-v0"}
+    assert env_id("table1_nirl") == "nirl_mj/Table1Nirl-v0"
+
+
+def test_both_checkers_pass_on_the_full_dict_without_a_warning():
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gymnasium.make("nirl_mj/Navigate-v0")
+    assert set(env.observation_space.spaces) == set(NAMES)
+    for name, box in env.observation_space.spaces.items():
+        assert np.all(np.isfinite(box.low)) and np.all(np.isfinite(box.high)), name
+        assert box.shape and len(box.shape) == 1, name
+    assert env.action_space == gymnasium.spaces.Discrete(6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an infinite bound, a 0-d array, ...: a failure
+        check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped)
+    env.close()
+
+
+def test_reset_with_a_seed_draws_the_arena_of_that_arena_seed():
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL)
+    first, _ = env.reset(seed=11)
+    again, _ = env.reset(seed=11)
+    other, _ = env.reset(seed=12)
+    for key in NAMES:
+        np.testing.assert_array_equal(first[key], again[key])
+    assert not np.array_equal(first["rays"], other["rays"])
+    # The same arena as run_episode's for arena seed 11, through the dm_env underneath.
+    dm = nirl_mj.make_env(env.unwrapped.task_spec)
+    seen = []
+    run_episode(dm, _Stop(), 11, on_step=lambda i, ts, a: seen.append(ts.observation))
+    for key in NAMES:
+        np.testing.assert_array_equal(first[key], seen[0][key], err_msg=key)
+
+
+class _Stop:
+    kind = "stop"
+
+    def reset(self, env, timestep):
+        pass
+
+    def act(self, timestep):
+        return 0 if timestep.observation["steps"][0] < 1 else 5
+
+
+def test_the_budget_truncates_and_an_arrival_terminates_with_is_success():
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.step_budget=2"])
+    env.reset(seed=0)
+    _, _, terminated, truncated, info = env.step(0)
+    assert (terminated, truncated, info["outcome"], info["is_success"]) == (False, False, "running", False)
+    _, _, terminated, truncated, info = env.step(0)
+    assert (terminated, truncated, info["outcome"], info["is_success"]) == (False, True, "timeout", False)
+
+    near = ["arena.static_obstacles=0", "arena.start=[10.0, 10.0]", "arena.target=[12.5, 10.0]"]
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, *near])
+    env.reset(seed=0)
+    ends = [env.step(0)[2:] for _ in range(2)]
+    assert ends[-1][0] is True and ends[-1][1] is False
+    assert ends[-1][2]["outcome"] == "target" and ends[-1][2]["is_success"] is True
+
+
+def test_render_gives_frames_at_one_per_decision():
+    quick = ["control.decision_period=0.25", "control.max_accel=10.0"]
+    env = gymnasium.make(
+        "nirl_mj/Navigate-v0", set=[*SMALL, *quick], render_mode="rgb_array", width=64, height=48
+    )
+    assert env.metadata["render_fps"] == 4.0
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (48, 64, 3) and frame.dtype == np.uint8 and frame.std() > 0
+
+
+def test_one_observation_alone_is_its_box_and_close_twice_is_harmless():
+    env = gymnasium.make("nirl_mj/Dynamic-v0", observation="features")
+    assert env.observation_space.shape == (16,)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (16,) and env.observation_space.contains(obs)
+    env.close()
+    env.close()
+
+
+def test_async_vector_environments_step():
+    envs = gymnasium.make_vec("nirl_mj/Navigate-v0", num_envs=2, vectorization_mode="async", set=SMALL)
+    obs, _ = envs.reset(seed=3)
+    assert obs["features"].shape == (2, 16)
+    obs, reward, terminated, truncated, info = envs.step(np.array([0, 1]))
+    assert reward.shape == (2,) and list(info["outcome"]) == ["running", "running"]
+    envs.close()
+
+
+def test_bad_input_is_a_clear_error():
+    with pytest.raises(gymnasium.error.Error, match="Did you mean: `Navigate`"):
+        gymnasium.make("nirl_mj/Navigat-v0")
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be one integer in 0\.\.5"):
+        env.step(2.5)
+    with pytest.raises(ValueError, match="accepted: one of or a list of features"):
+        gymnasium.make("nirl_mj/Navigate-v0", observation="phi")
+    with pytest.raises(ValueError, match="no_such_task"):
+        gymnasium.make("nirl_mj/Navigate-v0", task="no_such_task")
+
+
+def test_the_core_package_imports_and_runs_without_gymnasium():
+    code = (
+        "import sys; sys.modules['gymnasium'] = None\n"
+        "import nirl_mj, nirl_mj.cli\n"
+        "assert 'nirl_mj.gym.registration' not in sys.modules\n"
+        "assert nirl_mj.cli.main(['rollout', '--episodes', '1', '--quiet', '--set', "
+        "'arena.static_obstacles=0', '--set', 'control.step_budget=2']) == 0\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    # What needs the extra says so, in one line.
+    code = ("import sys; sys.modules['gymnasium'] = None\nimport nirl_mj.cli\n"
+            "sys.exit(nirl_mj.cli.main(['rl', '--steps', '8', '--out', sys.argv[1]]))")  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code, "/nonexistent/rl"], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "nirl-mj rl: error: this needs the optional extra nirl-mj[gym] (no module 'gymnasium'): "
+        "pip install -e '.[gym]'"
+    ]
+
+
+def _gym_actions(env, policy, seed: int) -> tuple[list[int], str]:
+    obs, info = env.reset(seed=seed)
+    actions = []
+    while True:
+        actions.append(policy(obs))
+        obs, _, terminated, truncated, info = env.step(actions[-1])
+        if terminated or truncated:
+            return actions, info["outcome"]
+
+
+@pytest.mark.parametrize("kind", ["sensor", "rule", "planner"])
+def test_experts_as_policies_drive_as_they_do_in_run_episode(kind):
+    from nirl_mj.experts import make_expert
+    from nirl_mj.gym.policies import ExpertPolicy, reference_policy
+
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL)
+    policy = reference_policy(kind) if kind == "rule" else ExpertPolicy(kind, env=env)
+    dm = nirl_mj.make_env(env.unwrapped.task_spec)
+    for seed in (5, 6):  # two episodes: the expert is reset between them
+        actions, outcome = _gym_actions(env, policy, seed)
+        expected = run_episode(dm, make_expert(kind), seed)
+        assert actions == expected.actions.tolist() and outcome == expected.outcome
+
+
+def test_policies_refuse_what_they_cannot_read():
+    from nirl_mj.gym.policies import ExpertPolicy, reference_policy
+
+    with pytest.raises(ValueError, match="give env="):
+        ExpertPolicy("planner")
+    with pytest.raises(ValueError, match="accepted: planner, sensor"):
+        ExpertPolicy("oracle")
+    with pytest.raises(ValueError, match="full Dict observation"):
+        ExpertPolicy("sensor")(np.zeros(16, np.float32))
+    assert reference_policy("forward")(np.zeros(16, np.float32)) == 0
+
+
+# -- continuous actions ---------------------------------------------------------------------------
+
+
+def test_continuous_actions_are_a_bounded_twist_through_the_wheel_controller():
+    import math
+
+    from nirl_mj.sim import spec
+
+    with pytest.raises(spec.SpecError, match="accepted: discrete, continuous"):
+        spec.apply_overrides(spec.load_task("navigate"), ['control.actions="sideways"'])
+    assert "actions" not in spec.load_task("navigate").to_dict()["control"]  # records unchanged
+    task = spec.apply_overrides(spec.load_task("navigate"), [*SMALL, "arena.static_obstacles=0",
+                                                              'control.actions="continuous"'])  # fmt: skip
+    env = nirl_mj.make_env(task, seed=0)
+    bounds = env.action_spec()
+    assert bounds.shape == (2,) and bounds.maximum.tolist() == [2.0, pytest.approx(math.pi / 3 / 0.5)]
+    start = env.reset().observation["pose"].copy()
+    for _ in range(3):
+        ts = env.step(np.array([0.0, bounds.maximum[1]]))  # on the spot, left at full rate
+    turned = math.degrees(ts.observation["pose"][2] - start[2])
+    assert 150 < turned <= 180  # 60 degrees a decision, less the wheels' acceleration ramp
+    assert np.hypot(*(ts.observation["pose"][:2] - start[:2])) < 0.05
+    with pytest.raises(ValueError, match=r"out of range: accepted \(forward speed m/s in \[-2, 2\]"):
+        env.step(np.array([2.5, 0.0]))
+    with pytest.raises(ValueError, match="two finite numbers"):
+        env.step(3)
+    with pytest.raises(ValueError, match="continuous actions; episodes are recorded"):
+        run_episode(env, _Stop(), 0)
+
+
+def test_the_rule_and_ppo_drive_with_continuous_actions():
+    from nirl_mj.gym.policies import reference_policy
+
+    gym_set = [*SMALL, 'control.actions="continuous"']
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*gym_set, "arena.static_obstacles=0"])
+    assert env.action_space == gymnasium.spaces.Box(np.float32([-2, -2.0943951]), np.float32([2, 2.0943951]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # Physical units (m/s, rad/s) by design; wrap in RescaleAction for [-1, 1].
+        warnings.filterwarnings("ignore", message=".*symmetric and normalized space")
+        from gymnasium.utils.env_checker import check_env
+
+        check_env(env.unwrapped)
+    _, outcome = _gym_actions(env, reference_policy("rule", env=env), 0)
+    assert outcome == "target"
+
+    sb3 = pytest.importorskip("stable_baselines3")
+    model = sb3.PPO("MultiInputPolicy", gymnasium.make("nirl_mj/Navigate-v0", set=gym_set), n_steps=64,
+                    batch_size=32, n_epochs=1, seed=0, device="cpu")  # fmt: skip
+    model.learn(64)
+    action, _ = model.predict(env.reset(seed=1)[0], deterministic=True)
+    assert action.shape == (2,) and env.action_space.contains(action.astype(np.float32))

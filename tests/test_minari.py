@@ -1,0 +1,82 @@
+"""Datasets as Minari datasets (nirl_mj.gym.minari_export, ``nirl-mj export``, ``train --demos minari:``)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gymnasium")  # the optional extra nirl-mj[gym]
+minari = pytest.importorskip("minari")
+
+from nirl_mj.cli import main  # noqa: E402
+from nirl_mj.data.dataset import load_dataset  # noqa: E402
+
+SMALL = ["--set", "arena.size=[24.0, 24.0]", "--set", "arena.start=[4.0, 4.0]",
+         "--set", "arena.target=[20.0, 20.0]", "--set", "arena.static_obstacles=3",
+         "--set", "arena.clear_radius=3.0", "--set", 'robot.drive="planar"']  # fmt: skip
+ID = "nirl_mj/navigate/sensor-v0"
+
+
+@pytest.fixture
+def exported(tmp_path, monkeypatch):
+    """Three sensor-expert demonstrations on a small task, exported to a Minari store in tmp_path."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    demos = tmp_path / "demos.npz"
+    assert main(["demos", "--episodes", "3", "--seed", "1", "--workers", "1", "--quiet", "--out", str(demos),
+                 *SMALL]) == 0  # fmt: skip
+    assert main(["export", str(demos), "--to", "minari", "--id", ID, "--quiet"]) == 0
+    return demos
+
+
+def test_recovered_environment_replays_every_episode_bit_for_bit(exported):
+    dataset = minari.load_dataset(ID)
+    trajectories = load_dataset(exported)
+    assert dataset.total_episodes == 3 and dataset.total_steps == sum(len(t) for t in trajectories)
+    env = dataset.recover_environment()
+    seeds = [m["seed"] for m in dataset.storage.get_episode_metadata(dataset.episode_indices)]
+    assert seeds == [t.arena_seed for t in trajectories]
+    for episode, seed in zip(dataset.iterate_episodes(), seeds, strict=True):
+        obs, _ = env.reset(seed=seed)
+        replayed = {key: [value] for key, value in obs.items()}
+        rewards, ends = [], []
+        for action in episode.actions:
+            obs, reward, terminated, truncated, _ = env.step(action)
+            rewards.append(reward)
+            ends.append((terminated, truncated))
+            for key, value in obs.items():
+                replayed[key].append(value)
+        assert set(replayed) == set(episode.observations)
+        for key, values in replayed.items():
+            assert np.array_equal(np.stack(values), episode.observations[key]), key
+        assert np.array_equal(rewards, episode.rewards)
+        assert ends == list(zip(episode.terminations, episode.truncations, strict=True))
+        assert ends[-1] != (False, False) and not any(t or u for t, u in ends[:-1])
+
+
+def test_a_minari_dataset_trains_like_its_file(exported, tmp_path):
+    from nirl_mj.gym.minari_export import load_minari
+
+    for a, b in zip(load_dataset(exported), load_minari(ID), strict=True):
+        for field in ("features", "actions", "ranges", "poses", "times"):
+            assert np.array_equal(getattr(a, field), getattr(b, field)), field
+        assert (a.arena_seed, a.task, a.speed, a.outcome, a.demonstrator) == (
+            b.arena_seed, b.task, b.speed, b.outcome, b.demonstrator)  # fmt: skip
+    config = [arg for kv in ("episodes=1", "trajectories_per_episode=2", "validation_arenas=2",
+                             "replay_episodes=1") for arg in ("--config", kv)]  # fmt: skip
+    run = tmp_path / "run"
+    assert main(["train", "--demos", f"minari:{ID}", "--out", str(run), "--quiet", *SMALL, *config]) == 0
+    assert json.loads((run / "run.json").read_text())["demos"] == f"minari:{ID}"
+
+
+def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["export", str(exported), "--to", "minari", "--id", ID, "--quiet"]) == 2
+    assert "exists; pass --overwrite to replace it" in capsys.readouterr().err
+    assert main(["export", str(exported), "--to", "minari", "--id", ID, "--quiet", "--overwrite"]) == 0
+    assert main(["export", str(exported), "--to", "minari", "--id", "no spaces allowed!", "--quiet"]) == 2
+    assert "Minari dataset id 'no spaces allowed!'" in capsys.readouterr().err
+    assert main(["train", "--demos", "minari:nirl_mj/navigate/none-v0", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "no local Minari dataset 'nirl_mj/navigate/none-v0'" in err and ID in err

@@ -1,0 +1,123 @@
+"""The RL reference (nirl_mj.experiments.rl, ``nirl-mj rl``) and Stable-Baselines3 on the environments."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gymnasium")  # the optional extra nirl-mj[gym]
+sb3 = pytest.importorskip("stable_baselines3")
+
+from nirl_mj.cli import main  # noqa: E402
+from nirl_mj.experiments.definition import ExperimentError, from_dict  # noqa: E402
+from nirl_mj.experiments.seeds import held_out_seeds  # noqa: E402
+
+SMALL = ["--set", "arena.size=[24.0, 24.0]", "--set", "arena.start=[4.0, 4.0]",
+         "--set", "arena.target=[20.0, 20.0]", "--set", "arena.static_obstacles=3",
+         "--set", "arena.clear_radius=3.0", "--set", 'robot.drive="planar"']  # fmt: skip
+GYM_SMALL = [SMALL[i + 1] for i in range(0, len(SMALL), 2)]
+
+
+def test_ppo_on_the_full_dict_through_subprocess_vector_environments():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    # "nirl_mj:" imports nirl_mj in each worker process, which registers the id there.
+    envs = make_vec_env("nirl_mj:nirl_mj/Navigate-v0", n_envs=2, seed=0, vec_env_cls=SubprocVecEnv,
+                        env_kwargs={"set": GYM_SMALL})  # fmt: skip
+    model = sb3.PPO("MultiInputPolicy", envs, n_steps=64, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(128)
+    assert model.num_timesteps == 128
+    obs = envs.reset()
+    actions, _ = model.predict(obs, deterministic=True)
+    assert actions.shape == (2,) and set(actions.tolist()) <= set(range(6))
+    envs.close()
+
+
+def test_rl_trains_evaluates_on_held_out_arenas_and_refuses_to_overwrite(tmp_path, capsys):
+    run = tmp_path / "dqn"
+    # DQN: it trains exactly the steps asked (PPO rounds up to its 1024-decision rollouts).
+    args = ["rl", "--algo", "dqn", "--steps", "64", "--seed", "3", "--out", str(run), "--quiet", *SMALL]
+    assert main(args) == 0
+    record = json.loads((run / "run.json").read_text())
+    assert record["kind"] == "rl" and record["steps_done"] == 64 and record["train_seeds"]
+    assert (run / "model.zip").is_file()
+    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 0
+    result = json.loads((run / "eval.json").read_text())
+    (key,) = result
+    assert result[key]["tests"] == 3
+    # Held out: none of the training arenas (the first test arenas, had they not been skipped).
+    assert not set(held_out_seeds(0, 3, set(record["train_seeds"]))) & set(record["train_seeds"])
+
+    capsys.readouterr()
+    assert main(args) == 2
+    assert "pass --resume to continue it, --overwrite to replace it" in capsys.readouterr().err
+    resume = [
+        "rl",
+        "--algo",
+        "dqn",
+        "--steps",
+        "128",
+        "--seed",
+        "3",
+        "--out",
+        str(run),
+        "--quiet",
+        "--resume",
+    ]
+    assert main(resume) == 0  # on to a larger total, with the run's own task
+    assert json.loads((run / "run.json").read_text())["steps_done"] == 128
+    assert main([*args, "--overwrite"]) == 0
+    assert main(["eval", "--run", str(run), "--which", "last", "--quiet"]) == 2
+    assert "an RL run, with one policy" in capsys.readouterr().err
+
+
+def test_overwrite_replaces_only_an_rl_run(tmp_path, capsys):
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    assert main(["rl", "--steps", "8", "--out", str(other), "--overwrite", "--quiet", *SMALL]) == 2
+    assert "not an RL run directory" in capsys.readouterr().err
+    assert (other / "notes.txt").read_text() == "mine"
+
+
+def test_rl_methods_are_validated_in_experiment_files():
+    data = {"kind": "compare", "methods": ["PPO-reward", "DQN"],
+            "method": {"DQN": {"kind": "rl", "algo": "dqn", "steps": 100}}}  # fmt: skip
+    experiment = from_dict(data)
+    assert [(m.kind, m.algo, m.steps) for m in experiment.methods] == [
+        ("rl", "ppo", 50_000),
+        ("rl", "dqn", 100),
+    ]
+    with pytest.raises(ExperimentError, match="accepted: ppo, dqn"):
+        from_dict({**data, "method": {"DQN": {"kind": "rl", "algo": "a2c"}}})
+    with pytest.raises(ExperimentError, match='algo and steps apply to kind = "rl" only'):
+        from_dict({"kind": "compare", "methods": ["X"], "method": {"X": {"kind": "bc", "steps": 3}}})
+    with pytest.raises(ExperimentError, match="compare experiments only"):
+        from_dict({"kind": "sweep", "methods": ["PPO-reward"], "obstacles": [5], "speeds": [2.0]})
+    # An experiment without an RL method keeps the identity it had before RL methods existed.
+    assert "algo" not in from_dict({"kind": "compare", "methods": ["rule"]}).identity()["methods"][0]
+
+
+def test_compare_runs_an_rl_method_next_to_the_others(tmp_path):
+    spec = tmp_path / "rl.toml"
+    spec.write_text(
+        'kind = "compare"\nruns = 1\ntests = 2\nmethods = ["PPO", "rule"]\n'
+        '[method.PPO]\nkind = "rl"\nsteps = 64\n[demos]\nepisodes = 1\n'
+        "[set.arena]\nsize = [24.0, 24.0]\nstart = [4.0, 4.0]\ntarget = [20.0, 20.0]\nstatic_obstacles = 3\n"
+        '[set.robot]\ndrive = "planar"\n'
+    )
+    out = tmp_path / "out"
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["methods"]["PPO"]["runs"] == 1 and results["cells"]["PPO-run000"]["tests"] == 2
+    record = json.loads((out / "runs" / "PPO" / "0" / "run.json").read_text())
+    assert record["kind"] == "rl" and np.isfinite(results["methods"]["PPO"]["avg"])
+    # PPO acts by sampling its policy with a seeded generator: the same actions every time.
+    from nirl_mj.experiments.rl import load_rl_policy
+
+    phis = np.random.default_rng(0).integers(0, 2, (30, 16)).astype(np.float32)
+    runs = [[load_rl_policy(out / "runs" / "PPO" / "0")[0](phi) for phi in phis] for _ in range(2)]
+    assert runs[0] == runs[1] and all(isinstance(a, int) and 0 <= a < 6 for a in runs[0])
