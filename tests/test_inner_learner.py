@@ -48,14 +48,14 @@ def test_targets_bootstrap_from_the_next_pair_or_the_greedy_value(bootstrap):
 
 
 def test_the_network_width_is_a_setting():
-    learner = loop(hidden_units=32)
-    assert network.get_weights(learner.net)["W1"].shape == (32, 17)
+    learner = loop(hidden_units=32)  # 17 inputs ((cos, sin) of V in V's place) and a bias
+    assert network.get_weights(learner.net)["W1"].shape == (32, 18)
     assert network.get_weights(learner.net)["W2"].shape == (6, 33)
 
 
 def test_polyak_averaging_keeps_the_exponential_average_of_the_weights():
     learner = loop(weight_averaging=0.75, hidden_units=10)
-    w = [{"W1": np.full((10, 17), float(i)), "W2": np.full((6, 11), 2.0 * i)} for i in (4, 8, 16)]
+    w = [{"W1": np.full((10, 18), float(i)), "W2": np.full((6, 11), 2.0 * i)} for i in (4, 8, 16)]
     kept = []
     for weights in w:
         policy, net = learner._kept_policy(weights)

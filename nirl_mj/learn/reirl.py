@@ -216,8 +216,9 @@ class RelativeEntropyStep:
             fs, uniform, self.loop.gamma, self.own.re_horizon, self.own.re_expectations, self.dim
         )
         self.mu_e = expert.mean(axis=0)
-        # step 2: range_i of one pair's f_i over the demonstrated states and every action (f >= 0)
-        feature_range = per_action.max(axis=(0, 1))
+        # step 2: range_i of one pair's f_i over the demonstrated states and every action (f_i is 0 in
+        # the other actions' blocks, so 0 is in the range; "bearing" features can be negative)
+        feature_range = per_action.max(axis=(0, 1)) - per_action.min(axis=(0, 1))
         self.eps = hoeffding_widths(
             feature_range, len(demos), self.loop.gamma, self.own.re_horizon, self.own.re_confidence
         )
