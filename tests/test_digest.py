@@ -16,7 +16,8 @@ ee3e5c9...), and was re-pinned on 2026-11-24 after checking that 44e7b06 and the
 new code give the same digest there. If this test fails, first run it at the last
 commit it passed at: if that fails too, the platform changed, not the results.
 Re-pinned the same day when the default variant took bearing reward features and
-network inputs (docs/ALGORITHM.md, "Bearing features"): meant to change results.
+network inputs (docs/ALGORITHM.md, "Bearing features"): meant to change results; the paper
+variant's checkpoint, policy, metrics, reward and evaluation stayed bit-identical.
 """
 
 from __future__ import annotations
