@@ -54,6 +54,12 @@ def danger_levels(clearance: np.ndarray, sensing_range: float, danger7_clearance
     return levels.astype(np.int8)
 
 
+def sector_centre(phi: np.ndarray) -> np.ndarray:
+    """The centre of the target's sector V as a bearing, radians counter-clockwise from the front:
+    phi (..., 16) -> (...). The direction the learner's bearing features are built from."""
+    return SENSOR_ANGLES[np.asarray(phi)[..., 7].astype(int) - 1]
+
+
 def target_region(bearing: float | np.ndarray) -> np.ndarray:
     """Sector 1..9 whose 40-degree cone contains the bearing (radians, counter-clockwise
     from the front; any real value)."""

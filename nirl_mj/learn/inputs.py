@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nirl_mj.data.features import N_FEATURES, SENSOR_ANGLES
+from nirl_mj.data.features import N_FEATURES, sector_centre
 
 _SCALE = np.array([7.0] * 7 + [9.0] + [1.0] * 8)
 _V = 7
@@ -46,7 +46,7 @@ class NetworkInputs:
             x = x / _SCALE
         if not self.bearing:
             return x
-        centre = SENSOR_ANGLES[np.asarray(phi)[..., _V].astype(int) - 1]  # radians from the front
+        centre = sector_centre(phi)
         return np.concatenate(
             [x[..., :_V], np.cos(centre)[..., None], np.sin(centre)[..., None], x[..., _V + 1 :]], axis=-1
         )

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS, SENSOR_ANGLES
+from nirl_mj.data.features import ACTION_NAMES, FEATURE_NAMES, N_ACTIONS, N_SENSORS, sector_centre
 
 REWARD_FEATURES = ("paper", "extended", "bearing")
 
@@ -40,7 +40,7 @@ def state_reward_features(phi: np.ndarray, kind: str) -> np.ndarray:
     region = np.eye(N_SENSORS)[phi[..., _V].astype(int) - 1]
     parts = [phi[..., _D] / 7.0, region]
     if kind == "bearing":
-        centre = SENSOR_ANGLES[phi[..., _V].astype(int) - 1]  # radians, counter-clockwise from the front
+        centre = sector_centre(phi)
         parts += [np.cos(centre)[..., None], np.sin(centre)[..., None]]
     ones = np.ones((*phi.shape[:-1], 1))
     return np.concatenate([*parts, phi[..., _I, None], phi[..., _U], ones], axis=-1)
