@@ -12,7 +12,7 @@ from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.experiments.training import load_policy, train
-from nirl_mj.learn.al import expectations, project
+from nirl_mj.learn.al import expectations, project, state_expectations
 from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.methods import REWARD_STEPS, RolloutContext, reward_step
 from nirl_mj.learn.mmp import mmp_objective
@@ -21,8 +21,10 @@ from nirl_mj.learn.reirl import (
     dual_gradient,
     hoeffding_widths,
     importance_weights,
+    l1_step,
     log_importance_ratios,
     soft_threshold,
+    state_data_gradient,
     windowed_sums,
 )
 from nirl_mj.learn.scirl import heuristic_expectations, minimise_scirl
@@ -87,10 +89,44 @@ def test_al_expectations_whole_trajectory_and_suffix_by_hand():
         expectations(f, 0.5, "occupancy")
 
 
-def test_al_step_runs_steps_1_and_2_on_rollouts():
-    step = reward_step(
-        LearnerConfig.preset("default", reward_features="extended", method="al", gamma=0.5), [fake([0, 0])]
+TRAJ_AL = LearnerConfig.preset(
+    "default", reward_features="extended", method="al", gamma=0.5, al_expectations="trajectory"
+)
+
+
+def test_al_per_state_expectations_by_hand():
+    per_action = np.array([[[1.0, 0.0], [0.0, 1.0]], [[2.0, 2.0], [0.0, 4.0]]])  # (N=2, A=2, D=2)
+    # the expert's actions 0 then 1: ((1, 0) + (0, 4)) / 2
+    np.testing.assert_allclose(state_expectations(per_action, np.array([[1, 0], [0, 1]])), [0.5, 2.0])
+    # a policy (1/2, 1/2) then (1/4, 3/4): ((0.5, 0.5) + (0.5, 3.5)) / 2
+    np.testing.assert_allclose(
+        state_expectations(per_action, np.array([[0.5, 0.5], [0.25, 0.75]])), [0.5, 2.0]
     )
+
+
+def test_al_per_state_step_measures_the_rollouts_policy_in_the_experts_states():
+    config = LearnerConfig.preset("default", reward_features="extended", method="al", gamma=0.5)
+    assert config.step.al_expectations == "state"  # the default reading
+    step = reward_step(config, [fake([0, 0])])
+    np.testing.assert_allclose(step.mu_e, pattern([1, 0, 0, 0, 0, 0]))  # f(s_n, a_n), mean over 2 pairs
+    with pytest.raises(ValueError, match="RolloutContext"):
+        step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
+    # step 1 with the uniform policy: mu^0 = pattern(1/6 each), whatever the rollouts were
+    theta, t = step.update(np.zeros(150), [fake([3, 3, 3])], 0, np.zeros(2), uniform_context())
+    w = pattern([5 / 6, -1 / 6, -1 / 6, -1 / 6, -1 / 6, -1 / 6])
+    assert t == pytest.approx(np.linalg.norm(w))
+    np.testing.assert_allclose(theta, w / t)
+    # step 2 with a policy that takes forward w.p. 1/2: mu^1 = pattern(1/2, 1/10 x 5), the segment
+    # from mu^0 points straight at mu_E, c = 0.4: mu_bar = mu^1 (the projection stops at mu)
+    skewed = RolloutContext(
+        eta=1.0, q_values=lambda phi: np.tile([math.log(5.0), 0, 0, 0, 0, 0], (len(phi), 1))
+    )
+    step.update(theta, [], 1, np.zeros(2), skewed)
+    np.testing.assert_allclose(step.mu_bar, pattern([0.5, 0.1, 0.1, 0.1, 0.1, 0.1]))
+
+
+def test_al_step_runs_steps_1_and_2_on_rollouts():
+    step = reward_step(TRAJ_AL, [fake([0, 0])])
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))  # eq. 11: 1 + 0.5
     # step 1: the first rollouts' mu^0 = mu_bar^0; w = mu_E - mu^0 = (1.5, -1) per component pair
     theta, t = step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))
@@ -104,9 +140,7 @@ def test_al_step_runs_steps_1_and_2_on_rollouts():
     np.testing.assert_allclose(theta, pattern([10 / 9, -2 / 9, -7 / 9, 0, 0, 0]) / t)
     assert np.linalg.norm(theta) == pytest.approx(1.0)
     # a checkpoint restores mu_bar exactly
-    other = reward_step(
-        LearnerConfig.preset("default", reward_features="extended", method="al", gamma=0.5), [fake([0, 0])]
-    )
+    other = reward_step(TRAJ_AL, [fake([0, 0])])
     other.load_state(saved)
     np.testing.assert_array_equal(other.update(np.zeros(150), [fake([2, 0])], 1, np.zeros(2))[0], theta)
 
@@ -159,6 +193,7 @@ def test_re_step_importance_weights_from_the_rollout_policy():
         re_steps=1,
         re_step=1.0,
         re_confidence=0.0,
+        re_expectations="trajectory",
     )
     step = reward_step(config, [fake([0, 0])])
     np.testing.assert_allclose(step.mu_e, pattern([1.5, 0, 0, 0, 0, 0]))
@@ -183,6 +218,37 @@ def test_re_step_importance_weights_from_the_rollout_policy():
         [fake([0, 0])],
     )
     np.testing.assert_allclose(suffix.mu_e, pattern([1.25, 0, 0, 0, 0, 0]))  # (1.5 + 1) / 2
+
+
+def test_re_per_state_gradient_and_l1_step_by_hand():
+    per_action = np.array([[[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [0.0, 0.0]]])  # (N=2, A=2, D=2)
+    mu_e = np.array([1.0, 0.5])  # the expert's actions 0 then 0: ((1, 0) + (1, 1)) / 2
+    # theta = (ln 3, 0): state 0 logits (ln 3, 0) -> p (3/4, 1/4), E f = (3/4, 1/4);
+    # state 1 logits (ln 3, 0) -> (3/4, 1/4), E f = (3/4, 3/4); mean (3/4, 1/2)
+    theta = np.array([math.log(3.0), 0.0])
+    np.testing.assert_allclose(state_data_gradient(theta, mu_e, per_action), [0.25, 0.0], atol=1e-12)
+    # the L1 step: subgradient and proximal, as ascent_step takes them
+    data, eps = np.array([0.25, 0.05]), np.array([0.1, 0.1])
+    np.testing.assert_allclose(l1_step(theta, data, eps, 1.0, proximal=False), [math.log(3) + 0.15, 0.05])
+    np.testing.assert_allclose(l1_step(theta, data, eps, 1.0, proximal=True), [math.log(3) + 0.15, 0.0])
+
+
+def test_re_per_state_step_is_a_logit_of_the_experts_actions_and_ignores_rollouts():
+    config = LearnerConfig.preset("default", reward_features="extended", method="re", gamma=0.5,
+                                  re_steps=1, re_step=1.0, re_confidence=0.0)  # fmt: skip
+    assert config.step.re_expectations == "state"  # the default reading
+    step = reward_step(config, [fake([0, 0])])
+    np.testing.assert_allclose(step.mu_e, pattern([1, 0, 0, 0, 0, 0]))
+    # theta = 0: the softmax is uniform, one step of 1 gives mu_E - mean_a f(s, a)
+    theta, _ = step.update(np.zeros(150), [fake([1])], 0, np.zeros(2))  # no context needed
+    np.testing.assert_allclose(theta, pattern([5 / 6, -1 / 6, -1 / 6, -1 / 6, -1 / 6, -1 / 6]))
+    again, _ = reward_step(config, [fake([0, 0])]).update(np.zeros(150), [fake([4, 4])], 0, np.zeros(2))
+    np.testing.assert_array_equal(theta, again)
+    # many steps: the expert's action wins every state's softmax (a conditional logit)
+    many = reward_step(config.replace(re_steps=200), [fake([0, 0, 3])])
+    theta, _ = many.update(np.zeros(150), [], 0, np.zeros(3))
+    per_action = theta.reshape(6, 25)[:, 7] + theta.reshape(6, 25)[:, 24]
+    assert np.argmax(per_action) == 0 and np.argsort(per_action)[-2] == 3
 
 
 # -- SCIRL (Klein, Geist, Piot & Pietquin 2012) ---------------------------------------------------
@@ -295,15 +361,20 @@ def random_progress():
     return progress(trajectories)
 
 
-@pytest.mark.parametrize("method", ["al", "re", "scirl"])
-def test_a_short_baseline_run_beats_the_uniform_random_policy(tmp_path, open_demos, random_progress, method):
-    # The reward features and network inputs the baselines' Table I rows were measured with (extended,
-    # V/9). At the default since 2026-11-24 (bearing features and inputs) RE's 10-iteration run here
-    # falls below random (progress -0.15 against 0.30), while either change alone passes (0.71 and 1.0):
-    # docs/ALGORITHM.md, "Bearing features"; the baselines are re-measured in issue 16.
+@pytest.mark.parametrize(
+    ("method", "readings"),
+    [("al", {}), ("re", {}), ("scirl", {}),
+     ("al", {"al_expectations": "trajectory"}),
+     # RE-traj with the features its Table I row was first measured with (extended, V/9): at the
+     # bearing default its 10-iteration run here falls below random (progress -0.15 against 0.30)
+     ("re", {"re_expectations": "trajectory", "reward_features": "extended", "input_bearing": False})],
+)  # fmt: skip
+def test_a_short_baseline_run_beats_the_uniform_random_policy(
+    tmp_path, open_demos, random_progress, method, readings
+):
     config = LearnerConfig.preset("default",
         method=method, episodes=10, trajectories_per_episode=4, validation_arenas=3, validate_every=1,
-        final_candidates=1, reward_features="extended", input_bearing=False,
+        final_candidates=1, **readings,
     )  # fmt: skip
     train(tmp_path / "run", OPEN, open_demos, config, seed=0)
     policy, _ = load_policy(tmp_path / "run")

@@ -18,6 +18,9 @@ commit it passed at: if that fails too, the platform changed, not the results.
 Re-pinned the same day when the default variant took bearing reward features and
 network inputs (docs/ALGORITHM.md, "Bearing features"): meant to change results; the paper
 variant's checkpoint, policy, metrics, reward and evaluation stayed bit-identical.
+Re-pinned on 2026-11-25 when AL and RE took the per-state reading by default (issue 16): meant
+to change results; with ``al_expectations`` and ``re_expectations`` set to "trajectory" the new
+code gives the previous digest (9725b24...) bit for bit.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ TINY_LEARNER = ["episodes=3", "trajectories_per_episode=2", "validation_arenas=2
                 "replay_episodes=2"]  # fmt: skip
 METHODS = {"default": [], "paper": ["--variant", "paper"], "al": ["--config", "method=\"al\""],
            "re": ["--config", "method=\"re\""], "scirl": ["--config", "method=\"scirl\""]}  # fmt: skip
-PINNED = "9725b24239db1a1ed72777132df5d1a6111eb28f2c2910d899360ce7e636701f"
+PINNED = "88f9b24c09c78d5d4d5859e7b12ed2de46bacc17c867841e952ba58c704a1bfd"
 
 
 def _arrays_digest(h, path: Path) -> None:

@@ -83,8 +83,11 @@ class MethodSpec:
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
     "NIRL-paper": MethodSpec("NIRL-paper", "irl", "paper", "nirl"),
-    "AL": MethodSpec("AL", "irl", "default", "al"),
-    "RE": MethodSpec("RE", "irl", "default", "re"),
+    "AL": MethodSpec("AL", "irl", "default", "al"),  # per-state reading (learn/al.py)
+    "RE": MethodSpec("RE", "irl", "default", "re"),  # per-state reading (learn/reirl.py)
+    # the whole-trajectory reading of eq. 11 (the papers'; the default rows until 2026-11-25)
+    "AL-traj": MethodSpec("AL-traj", "irl", "default", "al", {"al_expectations": "trajectory"}),
+    "RE-traj": MethodSpec("RE-traj", "irl", "default", "re", {"re_expectations": "trajectory"}),
     "SCIRL": MethodSpec("SCIRL", "irl", "default", "scirl"),
     "BC": MethodSpec("BC", "bc"),
     "forward": MethodSpec("forward", "forward"),

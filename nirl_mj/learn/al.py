@@ -25,7 +25,21 @@ Feature expectations (``LearnerConfig.al_expectations``): ``"trajectory"`` is th
 each trajectory's discounted feature sum from its first pair, averaged over trajectories. With
 gamma = 0.65 that weighs about the first three decisions of each trajectory, in open space near
 the start (docs/ALGORITHM.md, "Baselines"). ``"suffix"`` averages the discounted suffix sum of every
-visited pair instead, so every state counts.
+visited pair instead, so every state counts, but it matches state-action frequencies: measured to
+collapse to "prefer forward", the action the expert takes ~91 % of the time.
+
+``"state"`` (the default since 2026-11-25) is the per-state reading that NIRL's default margin uses
+(``learn/mmp.py``, ``matching = "occupancy"``, ``future_mix = 0``): in every demonstrated state s_n
+the expert's discounted suffix mu_E(s_n, a_n) = f(s_n, a_n) + gamma mu_E(next_n) is compared with
+what the learner's policy pi^(i) does in the same state, sum_a pi^(i)(a | s_n) f(s_n, a) followed by
+the same continuation gamma mu_E(next_n). Averaged over the N demonstrated pairs,
+
+    mu_E = (1/N) sum_n f(s_n, a_n) + C,   mu^(i) = (1/N) sum_n sum_a pi^(i)(a | s_n) f(s_n, a) + C,
+
+and the continuation C cancels in every difference the projection takes (step 2), so it is left out.
+pi^(i) is the Boltzmann policy (eq. 8) of the network that drove the iteration's rollouts
+(``RolloutContext``): step 5 measures the policy that was run, in the states the expert visits,
+rather than by the states its own rollouts reach.
 """
 
 from __future__ import annotations
@@ -34,13 +48,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.learn.config import ApprenticeshipConfig, LoopConfig
 from nirl_mj.learn.mmp import discounted_suffix_sums, feature_expectations
 from nirl_mj.learn.reward import trajectory_pair_features
 
-__all__ = ["EXPECTATIONS", "expectations", "project", "ProjectionStep"]
-
-EXPECTATIONS = ("trajectory", "suffix")
+__all__ = ["expectations", "state_expectations", "project", "ProjectionStep"]
 
 
 def expectations(fs: Sequence[np.ndarray], gamma: float, kind: str) -> np.ndarray:
@@ -50,14 +63,24 @@ def expectations(fs: Sequence[np.ndarray], gamma: float, kind: str) -> np.ndarra
     over all M pairs of mu_hat(s_t, a_t) = sum_{k >= t} gamma^(k-t) f_k (Monte-Carlo eq. 3); zeros if
     there is no pair. Units: those of f, summed over ~1 / (1 - gamma) decisions.
     """
-    if kind not in EXPECTATIONS:
-        raise ValueError(f"unknown expectations {kind!r}; accepted: {', '.join(EXPECTATIONS)}")
+    if kind not in ("trajectory", "suffix"):
+        raise ValueError(f"unknown expectations {kind!r}; accepted: trajectory, suffix")
     if kind == "trajectory":
         return feature_expectations(fs, gamma)
     sums = [discounted_suffix_sums(f, gamma) for f in fs if len(f)]
     if not sums:
         return np.zeros(np.shape(fs[0])[-1])
     return np.concatenate(sums).mean(axis=0)
+
+
+def state_expectations(per_action: np.ndarray, probabilities: np.ndarray) -> np.ndarray:
+    """The per-state reading's mu (D,) without the shared continuation: (1/N) sum_n sum_a p[n, a] f(s_n, a).
+
+    per_action: (N, 6, D) f(s_n, a) in the demonstrated states; probabilities: (N, 6), a policy's
+    pi(a | s_n) (the expert's: one-hot rows of its actions).
+    """
+    per_action = np.asarray(per_action, dtype=np.float64)
+    return np.einsum("na,nad->d", np.asarray(probabilities, dtype=np.float64), per_action) / len(per_action)
 
 
 def project(mu_bar: np.ndarray, mu: np.ndarray, mu_e: np.ndarray) -> np.ndarray:
@@ -94,8 +117,15 @@ class ProjectionStep:
         self.gamma = float(loop.gamma)
         self.kind = own.al_expectations
         self.features = loop.reward_features
-        # mu_E from the demonstrations (eq. 11, or the suffix mean)
-        self.mu_e = expectations(trajectory_pair_features(demos, self.features), self.gamma, self.kind)
+        if self.kind == "state":
+            from nirl_mj.data.trajectory import stack_pairs
+            from nirl_mj.learn.reward import all_action_features
+
+            self.demo_phi, actions = stack_pairs(demos)
+            self.per_action = all_action_features(self.demo_phi, self.features)  # (N, 6, D)
+            self.mu_e = state_expectations(self.per_action, np.eye(N_ACTIONS)[actions.astype(int)])
+        else:  # mu_E from the demonstrations (eq. 11, or the suffix mean)
+            self.mu_e = expectations(trajectory_pair_features(demos, self.features), self.gamma, self.kind)
         self.mu_bar: np.ndarray | None = None  # None until step 1 has seen the first rollouts
 
     def update(
@@ -108,7 +138,12 @@ class ProjectionStep:
     ) -> tuple[np.ndarray, float]:
         """Steps 5 and 2-3 (or step 1 at the first call) on this iteration's rollouts -> (theta, t)."""
         # step 5 (step 1 at the first call): mu of the policy that produced these rollouts
-        mu = expectations(trajectory_pair_features(trajectories, self.features), self.gamma, self.kind)
+        if self.kind == "state":
+            if context is None:
+                raise ValueError("AL's per-state reading needs the rollouts' policy (RolloutContext)")
+            mu = state_expectations(self.per_action, context.action_probabilities(self.demo_phi))
+        else:
+            mu = expectations(trajectory_pair_features(trajectories, self.features), self.gamma, self.kind)
         if self.mu_bar is None:
             self.mu_bar = mu  # step 1: mu_bar^(0) = mu^(0)
         else:

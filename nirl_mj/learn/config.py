@@ -28,7 +28,7 @@ from typing import Any
 METHODS = ("nirl", "al", "re", "scirl")
 """The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
 REWARD_SOURCES = ("learned", "progress", "constant")
-EXPECTATIONS = ("trajectory", "suffix")
+EXPECTATIONS = ("state", "trajectory", "suffix")
 
 
 @dataclass(frozen=True)
@@ -128,10 +128,12 @@ class MaxMarginConfig:
 class ApprenticeshipConfig:
     """AL's reward step, the projection variant (``learn/al.py``)."""
 
-    # what a feature expectation is. "trajectory": eq. 11, each trajectory's discounted sum from its
-    # start (the papers' reading; with gamma 0.65 it sees ~3 steps); "suffix": the mean discounted
-    # suffix sum over every visited pair (sees every state)
-    al_expectations: str = "trajectory"
+    # what a feature expectation is. "state" (default since 2026-11-25): per demonstrated state, the
+    # expert's discounted suffix against the learner's policy in that state followed by the same
+    # continuation, as NIRL's default margin reads them (learn/al.py); "trajectory": eq. 11, each
+    # trajectory's discounted sum from its start (the papers' reading; with gamma 0.65 it sees ~3
+    # steps; the AL-traj row); "suffix": the mean discounted suffix sum over every visited pair
+    al_expectations: str = "state"
 
     def __post_init__(self) -> None:
         _choice("al_expectations", self.al_expectations, EXPECTATIONS)
@@ -141,7 +143,7 @@ class ApprenticeshipConfig:
 class RelativeEntropyConfig:
     """RE-IRL's reward step (``learn/reirl.py``)."""
 
-    re_expectations: str = "trajectory"  # as ApprenticeshipConfig.al_expectations
+    re_expectations: str = "state"  # as ApprenticeshipConfig.al_expectations (learn/reirl.py)
     re_horizon: int = 16  # pairs per RE sample (and its importance ratio); gamma^16 ~ 1e-3
     re_step: float = 0.5  # gradient-ascent step on the dual g(theta)
     re_steps: int = 30  # ascent steps per iteration, warm-started from the last theta

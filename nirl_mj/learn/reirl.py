@@ -44,6 +44,16 @@ Readings in the shared loop (:class:`nirl_mj.learn.loop.IrlLoop`), each with its
   a reward made mostly of noise, and the run collapsed to "always forward" (docs/ALGORITHM.md).
 - ``re_expectations = "suffix"``: every visited pair starts a sample (its discounted suffix, H
   pairs, and that window's ratio), on both sides, instead of each trajectory's start only.
+- ``re_expectations = "state"`` (the default since 2026-11-25): the per-state reading of NIRL's
+  default margin (``learn/mmp.py``; AL's in ``learn/al.py``). Every demonstrated state s_n is its
+  own sample space: the expert's suffix mu_E(s_n, a_n) = f(s_n, a_n) + gamma mu_E(next_n) against
+  the alternatives f(s_n, a) + gamma mu_E(next_n), the continuation shared, so it cancels in the
+  dual. The importance-sampling estimate of Z_n over actions a ~ pi(. | s_n) has an exact
+  expectation, E_pi[U(a) / pi(a | s_n) exp(theta^T f(s_n, a))] = sum_a U(a) exp(theta^T f(s_n, a)),
+  whatever pi is; it is used as is (zero variance), so the learner's rollouts drop out of this
+  reading, as they do for SCIRL. The dual becomes an L1-regularised conditional logit of the
+  expert's actions, g(theta) = (1/N) sum_n [theta^T f(s_n, a_n) - ln sum_a U(a) exp(theta^T f(s_n, a))]
+  - sum_i eps_i |theta_i|, with eps_i of step 2 for one pair (H = 1) and N_T demonstrations.
 
 The convergence measure is the norm of the (proximal) gradient at the returned theta: 0 at the
 maximum of g on the current samples.
@@ -57,7 +67,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from nirl_mj.data.features import N_ACTIONS
-from nirl_mj.learn.config import LoopConfig, RelativeEntropyConfig
+from nirl_mj.learn.config import EXPECTATIONS, LoopConfig, RelativeEntropyConfig
 
 __all__ = [
     "EXPECTATIONS",
@@ -68,11 +78,12 @@ __all__ = [
     "dual_gradient",
     "soft_threshold",
     "ascent_step",
+    "state_data_gradient",
+    "l1_step",
     "samples",
     "RelativeEntropyStep",
 ]
 
-EXPECTATIONS = ("trajectory", "suffix")
 L1_STEPS = ("proximal", "subgradient")
 
 
@@ -146,6 +157,28 @@ def soft_threshold(x: np.ndarray, width: np.ndarray) -> np.ndarray:
     return np.sign(x) * np.maximum(np.abs(x) - width, 0.0)
 
 
+def state_data_gradient(theta: np.ndarray, mu_e: np.ndarray, per_action: np.ndarray) -> np.ndarray:
+    """The per-state reading's smooth gradient, mu_E - (1/N) sum_n sum_a p_n(a) f(s_n, a), (D,).
+
+    per_action: (N, 6, D) f(s_n, a) in the demonstrated states; p_n = softmax_a theta^T f(s_n, a)
+    (the uniform baseline U cancels in the softmax); mu_e: (D,) the mean of f(s_n, a_n).
+    """
+    per_action = np.asarray(per_action, dtype=np.float64)
+    logits = per_action @ np.asarray(theta, dtype=np.float64)  # (N, 6)
+    p = np.exp(logits - logsumexp(logits, axis=1, keepdims=True))
+    return np.asarray(mu_e) - np.einsum("na,nad->d", p, per_action) / len(per_action)
+
+
+def l1_step(theta: np.ndarray, data: np.ndarray, eps: np.ndarray, step: float, proximal: bool) -> np.ndarray:
+    """theta (D,) moved along the smooth gradient ``data`` of g with its L1 term -sum eps_i |theta_i|:
+    the subgradient step theta + step (data - eps sign(theta)), or the proximal one (ISTA)
+    soft_threshold(theta + step data, step eps)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    if not proximal:
+        return theta + step * (np.asarray(data) - np.asarray(eps) * np.sign(theta))
+    return soft_threshold(theta + step * np.asarray(data), step * np.asarray(eps))
+
+
 def ascent_step(
     theta: np.ndarray,
     mu_e: np.ndarray,
@@ -163,10 +196,8 @@ def ascent_step(
     gradient stays within +-eps_i rests at exactly 0. With a fixed step the subgradient form never
     rests there: such a component flips by +-step eps_i every step.
     """
-    if not proximal:
-        return theta + step * dual_gradient(theta, mu_e, f, log_ratio, eps)
     data = np.asarray(mu_e) - importance_weights(theta, f, log_ratio) @ np.asarray(f, dtype=np.float64)
-    return soft_threshold(theta + step * data, step * np.asarray(eps))
+    return l1_step(theta, data, eps, step, proximal)
 
 
 def samples(
@@ -178,8 +209,8 @@ def samples(
     ``kind`` "trajectory": one sample per non-empty trajectory, its first H pairs; "suffix": one
     per pair, the H pairs from it.
     """
-    if kind not in EXPECTATIONS:
-        raise ValueError(f"unknown re_expectations {kind!r}; accepted: {', '.join(EXPECTATIONS)}")
+    if kind not in ("trajectory", "suffix"):
+        raise ValueError(f"samples of re_expectations {kind!r}: accepted: trajectory, suffix")
     keep = slice(None) if kind == "suffix" else slice(0, 1)
     f_out, r_out = [np.zeros((0, dim))], [np.zeros(0)]
     for f, p in zip(fs, p_taken, strict=True):
@@ -206,21 +237,26 @@ class RelativeEntropyStep:
             raise ValueError("re_horizon and re_pool must be >= 1")
         if self.own.re_l1_step not in L1_STEPS:
             raise ValueError(f"unknown re_l1_step {self.own.re_l1_step!r}; accepted: {', '.join(L1_STEPS)}")
-        phi, _ = stack_pairs(demos)
+        phi, actions = stack_pairs(demos)
         per_action = all_action_features(phi, self.loop.reward_features)  # (N, 6, D)
         self.dim = per_action.shape[-1]
-        # step 1: f_hat = mu_E, the expert's samples truncated and normalised as the learner's
-        fs = trajectory_pair_features(demos, self.loop.reward_features)
-        uniform = [np.full(len(f), 1.0 / N_ACTIONS) for f in fs]  # (the expert's ratios are not used)
-        expert, _ = samples(
-            fs, uniform, self.loop.gamma, self.own.re_horizon, self.own.re_expectations, self.dim
-        )
-        self.mu_e = expert.mean(axis=0)
+        self.per_state = self.own.re_expectations == "state"
+        if self.per_state:  # every demonstrated state is a sample space of its own (module docstring)
+            self.per_action = per_action
+            self.mu_e = per_action[np.arange(len(actions)), actions.astype(int)].mean(axis=0)
+        else:  # step 1: f_hat = mu_E, the expert's samples truncated and normalised as the learner's
+            fs = trajectory_pair_features(demos, self.loop.reward_features)
+            uniform = [np.full(len(f), 1.0 / N_ACTIONS) for f in fs]  # (the expert's ratios are not used)
+            expert, _ = samples(
+                fs, uniform, self.loop.gamma, self.own.re_horizon, self.own.re_expectations, self.dim
+            )
+            self.mu_e = expert.mean(axis=0)
         # step 2: range_i of one pair's f_i over the demonstrated states and every action (f_i is 0 in
         # the other actions' blocks, so 0 is in the range; "bearing" features can be negative)
         feature_range = per_action.max(axis=(0, 1)) - per_action.min(axis=(0, 1))
+        horizon = 1 if self.per_state else self.own.re_horizon
         self.eps = hoeffding_widths(
-            feature_range, len(demos), self.loop.gamma, self.own.re_horizon, self.own.re_confidence
+            feature_range, len(demos), self.loop.gamma, horizon, self.own.re_confidence
         )
         self.pool: list[tuple[np.ndarray, np.ndarray]] = []  # per iteration: (f^tau (M_k, D), ln U/pi (M_k,))
 
@@ -235,6 +271,15 @@ class RelativeEntropyStep:
         """Step 3 on this iteration's rollouts, then step 4 -> (theta, ||gradient||)."""
         from nirl_mj.learn.reward import pair_features
 
+        proximal = self.own.re_l1_step == "proximal"
+        theta = np.array(theta, dtype=np.float64)
+        if self.per_state:  # the rollouts drop out (module docstring): ascent on the fixed dual
+            for _ in range(self.own.re_steps):
+                data = state_data_gradient(theta, self.mu_e, self.per_action)
+                theta = l1_step(theta, data, self.eps, self.own.re_step, proximal)
+            data = state_data_gradient(theta, self.mu_e, self.per_action)
+            after = l1_step(theta, data, self.eps, self.own.re_step, proximal)
+            return theta, float(np.linalg.norm(after - theta) / self.own.re_step)
         if context is None:
             raise ValueError(
                 "RE-IRL's importance weights need the rollouts' policy (the loop's RolloutContext)"
@@ -249,11 +294,9 @@ class RelativeEntropyStep:
         self.pool = [*self.pool, fresh][-self.own.re_pool :]
         f = np.concatenate([s[0] for s in self.pool])
         log_ratio = np.concatenate([s[1] for s in self.pool])
-        theta = np.array(theta, dtype=np.float64)
         if len(f) == 0:
             return theta, float("nan")
         # step 4: ascent on the dual, warm-started from the last theta
-        proximal = self.own.re_l1_step == "proximal"
         for _ in range(self.own.re_steps):
             theta = ascent_step(theta, self.mu_e, f, log_ratio, self.eps, self.own.re_step, proximal)
         # convergence: the (proximal) gradient at theta, 0 at the maximum of g
