@@ -8,7 +8,8 @@ file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
 
 A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
-preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), a reference policy
+preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), DAgger with the
+demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a reference policy
 (``"forward"``, ``"rule"``), or reinforcement learning on the task's reward (``"rl"``:
 Stable-Baselines3, ``nirl_mj.experiments.rl``; compare experiments only, needs
 ``nirl-mj[gym]``). The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]`` tables add
@@ -35,7 +36,7 @@ from nirl_mj.sim import spec as specs
 from nirl_mj.sim.spec import SpecError
 
 KINDS = ("compare", "sweep")
-METHOD_KINDS = ("irl", "bc", "forward", "rule", "rl")
+METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
                "method", "demos", "config", "quick")  # fmt: skip
@@ -90,6 +91,7 @@ BUILTIN_METHODS = {
     "RE-traj": MethodSpec("RE-traj", "irl", "default", "re", {"re_expectations": "trajectory"}),
     "SCIRL": MethodSpec("SCIRL", "irl", "default", "scirl"),
     "BC": MethodSpec("BC", "bc"),
+    "DAgger": MethodSpec("DAgger", "dagger"),
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
     "PPO-reward": MethodSpec("PPO-reward", "rl", algo="ppo", steps=50_000),

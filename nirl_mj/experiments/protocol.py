@@ -126,6 +126,7 @@ class RunJob:
     run_dir: str
     config: dict
     test_seeds: tuple[int, ...]
+    expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
 
 
 def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[str, int], RunJob]:
@@ -141,7 +142,7 @@ def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[
             config = method.learner_config(experiment.config).to_dict() if method.trains else {}
             run_dir = out / "runs" / method.name / str(seed)
             jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(demos_path), str(run_dir),
-                                            config, seeds)  # fmt: skip
+                                            config, seeds, experiment.expert)  # fmt: skip
     return jobs
 
 
@@ -190,6 +191,14 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
         seen = set(record["train_seeds"]) & set(job.test_seeds)
         if seen:
             raise RuntimeError(f"{job.run_dir}: test arenas seen in training: {sorted(seen)}")
+        return policy
+    if kind == "dagger":
+        from nirl_mj.data.dataset import load_dataset
+        from nirl_mj.experiments.dagger import train_dagger
+
+        policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert)
+        if set(arenas) & set(job.test_seeds):
+            raise RuntimeError(f"{job.method.name} run {job.run}: test arenas seen in training")
         return policy
     if kind == "bc":
         from nirl_mj.data.dataset import load_dataset

@@ -1,0 +1,65 @@
+"""DAgger: the expert labels the states the learner's policy visits; the data set grows; it learns."""
+
+import numpy as np
+import pytest
+
+from nirl_mj.data.trajectory import stack_pairs
+from nirl_mj.experiments.dagger import DaggerConfig, LabellingAgent, train_dagger
+from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.seeds import domain_seeds
+from nirl_mj.sim import spec
+from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.task import make_env
+
+OPEN = spec.replace(
+    spec.load_task("navigate"),
+    arena={"size": (30.0, 30.0), "start": (5.0, 5.0), "target": (25.0, 25.0), "static_obstacles": 0},
+    robot={"drive": "planar"},
+)
+
+
+class CountingExpert:
+    """Labels every state 3 and counts what it was shown."""
+
+    kind = "counting"
+
+    def __init__(self) -> None:
+        self.resets, self.seen = 0, 0
+
+    def reset(self, env, timestep) -> None:
+        self.resets += 1
+
+    def act(self, timestep) -> int:
+        self.seen += 1
+        return 3
+
+
+def test_the_learner_drives_and_the_expert_labels_every_visited_state():
+    expert = CountingExpert()
+    agent = LabellingAgent(lambda phi: 0, expert)
+    trajectory = run_episode(make_env(OPEN), agent, 7)
+    assert set(trajectory.actions.tolist()) == {0}  # the learner's actions were executed
+    assert agent.labels == [3] * len(trajectory)  # the expert's labels were recorded, one per decision
+    np.testing.assert_array_equal(np.stack(agent.phi), trajectory.features[:-1])
+    assert (expert.resets, expert.seen) == (1, len(trajectory))
+
+
+def test_bad_config_is_refused():
+    with pytest.raises(ValueError, match="rounds >= 0 and episodes >= 1"):
+        DaggerConfig(rounds=1, episodes=0)
+
+
+def test_a_short_dagger_run_beats_the_uniform_random_policy():
+    demos = collect(OPEN, ExpertConfig("rule"), episodes=1, seed=0)
+    rounds = []
+    config = DaggerConfig(rounds=2, episodes=2)
+    policy, arenas = train_dagger(OPEN, demos, 0, "rule", config, lambda r, n: rounds.append((r, n)))
+    assert arenas == domain_seeds("train", 0, 4)
+    # the data set grew by every labelled state of each round
+    assert [r for r, _ in rounds] == [1, 2] and rounds[0][1] > len(stack_pairs(demos)[1]) < rounds[1][1]
+    tests = domain_seeds("test", 0, 4)
+    learned, _ = evaluate(make_env(OPEN), policy, tests)
+    rng = np.random.default_rng(0)
+    random, _ = evaluate(make_env(OPEN), lambda phi: int(rng.integers(6)), tests)
+    assert learned["success_rate"] >= 0.75 > random["success_rate"]
