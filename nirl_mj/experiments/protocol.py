@@ -183,10 +183,11 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
             )
         return policy
     if kind == "rl":
-        from nirl_mj.experiments.rl import ensure_rl_trained, load_rl_policy
+        from nirl_mj.experiments.rl import ADVERSARIAL, ensure_rl_trained, load_rl_policy
 
         if train:
-            ensure_rl_trained(job.run_dir, job.task, job.method.algo, job.method.steps, job.seed)
+            demos = job.demos_path if job.method.algo in ADVERSARIAL else None
+            ensure_rl_trained(job.run_dir, job.task, job.method.algo, job.method.steps, job.seed, demos)
         policy, record = load_rl_policy(job.run_dir)
         seen = set(record["train_seeds"]) & set(job.test_seeds)
         if seen:

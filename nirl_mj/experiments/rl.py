@@ -1,4 +1,8 @@
-"""A reinforcement-learning reference: Stable-Baselines3 on the task's own reward.
+"""Stable-Baselines3 learners: the RL reference on the task's own reward, and GAIL / AIRL.
+
+``ppo`` and ``dqn`` learn from the task's reward (the RL reference). ``gail`` and ``airl`` learn
+from the demonstrations: PPO with every reward replaced by a discriminator's
+(``nirl_mj.experiments.adversarial``); they never read the task's reward.
 
 NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
 phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
@@ -31,13 +35,16 @@ from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
-ALGOS = ("ppo", "dqn")
+ALGOS = ("ppo", "dqn", "gail", "airl")
+ADVERSARIAL = ("gail", "airl")  # PPO on a discriminator's reward (nirl_mj.experiments.adversarial)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
     "ppo": {"n_steps": 1024, "batch_size": 64, "n_epochs": 10, "gamma": 0.99, "learning_rate": 3e-4},
     "dqn": {"buffer_size": 100_000, "learning_starts": 1000, "gamma": 0.99, "learning_rate": 1e-4,
             "exploration_fraction": 0.2, "target_update_interval": 1000},
 }  # fmt: skip
+for _kind in ADVERSARIAL:  # the policy learner is PPO, with the RL reference's settings
+    SETTINGS[_kind] = dict(SETTINGS["ppo"])
 """Each algorithm's settings (recorded in the run; a resume must use the same)."""
 
 _SCALE = 1.0 / feature_bounds()[1]  # phi / its upper bounds: every input in [0, 1]
@@ -53,7 +60,7 @@ def _algorithm(algo: str):
         raise ValueError(f"unknown algorithm {algo!r}: accepted: {', '.join(ALGOS)}")
     import stable_baselines3
 
-    return {"ppo": stable_baselines3.PPO, "dqn": stable_baselines3.DQN}[algo]
+    return stable_baselines3.DQN if algo == "dqn" else stable_baselines3.PPO
 
 
 def _environment(task: specs.TaskSpec, seed: int, first_episode: int):
@@ -82,8 +89,10 @@ def train_rl(
     resume: bool = False,
     checkpoint_every: int = 10_000,
     on_steps: Callable[[int, dict], None] | None = None,
+    demos: str | os.PathLike | None = None,
 ) -> dict:
     """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
+    GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate.
 
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
     100 training episodes)."""
@@ -92,9 +101,20 @@ def train_rl(
         raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
+    adversarial = algo in ADVERSARIAL
+    if adversarial and demos is None:
+        raise ValueError(f"{algo} imitates demonstrations: give --demos (a dataset)")
+    trajectories = []
+    if adversarial:
+        from nirl_mj.data.dataset import load_dataset
+        from nirl_mj.experiments import adversarial as adv
+
+        trajectories = load_dataset(demos)
+    config = {"algo": algo, **SETTINGS[algo], **({"discriminator": adv.SETTINGS} if adversarial else {})}
     run = RunDir(run_dir)
-    record = {"kind": "rl", "algo": algo, "config": {"algo": algo, **SETTINGS[algo]}, "steps": steps,
-              "task": task.to_dict(), "seed": seed, "demos": None, "demo_seeds": [], "validation_seeds": [],
+    record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
+              "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
+              "demo_seeds": sorted({t.arena_seed for t in trajectories}), "validation_seeds": [],
               "train_seeds": [], "steps_done": 0}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
     if resume:
@@ -114,19 +134,32 @@ def train_rl(
         run.write_record(record)
 
     venv, arenas = _environment(task, seed, len(record["train_seeds"]))
+    callbacks = []
+    if adversarial:
+        expert = adv.expert_transitions(trajectories, scaled)
+        reward = adv.AdversarialReward(algo, SETTINGS[algo]["gamma"], expert, seed)
+        if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
+            with np.load(run.file(adv.DISCRIMINATOR_FILE)) as data:
+                reward.load_state({k: data[k] for k in data.files})
+        venv = adv.reward_wrapper(venv, reward)
+        callbacks.append(adv.training_callback(venv, reward))
     if resume and run.file(MODEL_FILE).is_file():
         model = cls.load(run.model_file(), env=venv, device="cpu")
     else:
         model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **SETTINGS[algo])
+    if adversarial:
+        reward.policy = model.policy
     done_before = list(record["train_seeds"])
 
     def checkpoint() -> None:
+        if adversarial:
+            adv.save_discriminator(run, reward)
         run.write_model(model.save)
         record.update(steps_done=int(model.num_timesteps), train_seeds=[*done_before, *arenas.used])
         run.write_record(record)
 
-    model.learn(steps - record["steps_done"], callback=_Progress(checkpoint, checkpoint_every, on_steps),
-                reset_num_timesteps=not resume)  # fmt: skip
+    callbacks.append(_Progress(checkpoint, checkpoint_every, on_steps))
+    model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
     checkpoint()
     venv.close()
     return record
@@ -157,7 +190,12 @@ def _Progress(checkpoint: Callable[[], None], every: int, on_steps) -> Any:
 
 
 def ensure_rl_trained(
-    run_dir: str | os.PathLike, task: specs.TaskSpec, algo: str, steps: int, seed: int
+    run_dir: str | os.PathLike,
+    task: specs.TaskSpec,
+    algo: str,
+    steps: int,
+    seed: int,
+    demos: str | os.PathLike | None = None,
 ) -> dict:
     """Trains the run, resumes it from its last checkpoint, or returns a finished one's record (an
     experiment's cell: ``nirl_mj.experiments.protocol.policy_of``)."""
@@ -166,7 +204,7 @@ def ensure_rl_trained(
         record = run.read_record()
         if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
             return record
-    return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run)
+    return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos)
 
 
 def is_rl_run(record: dict) -> bool:
@@ -190,7 +228,7 @@ def load_rl_policy(
         raise RunError(f"{run} is not an RL run ({RUN_FILE} has no kind = rl)")
     model = _algorithm(record["algo"]).load(run.model_file(), device="cpu")
     discrete_ppo = (
-        record["algo"] == "ppo" and record["task"]["control"].get("actions", "discrete") == "discrete"
+        record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )
     if sampled and discrete_ppo:
         import torch

@@ -1,0 +1,204 @@
+"""GAIL and AIRL with Stable-Baselines3 PPO as the policy learner (``nirl-mj rl --algo gail|airl``).
+
+The discriminators are ``nirl_mj.learn.adversarial``'s. Training alternates as in Ho & Ermon's
+algorithm 1 and in the imitation library's ``AdversarialTrainer``: PPO collects a rollout of
+``n_steps`` decisions (``rl.SETTINGS["ppo"]``) in which every reward is the discriminator's
+(:class:`DiscriminatorReward`; the environment's own reward is dropped, never read), then the
+discriminator takes ``epochs`` passes of minibatch Adam steps on that rollout against as many
+pairs drawn from the demonstrations (:class:`DiscriminatorTraining`), then PPO updates its policy
+on the rollout. The observation is phi(s) scaled to [0, 1], as for the RL reference and the
+other rows; the demonstrations are the experiment's 30.
+
+The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
+restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
+Needs the optional extra ``nirl-mj[gym]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from nirl_mj.data.atomic import write_npz
+from nirl_mj.data.rundir import RunDir, RunError
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.learn.adversarial import discriminator_loss, make_discriminator
+
+DISCRIMINATOR_FILE = "discriminator.npz"
+SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
+"""The discriminator's training per PPO rollout (recorded in the run)."""
+
+
+@dataclass(frozen=True)
+class Transitions:
+    """Pairs (x (N, 16) scaled phi(s), a (N,), x' (N, 16), terminal (N,) bool)."""
+
+    x: np.ndarray
+    actions: np.ndarray
+    x_next: np.ndarray
+    terminal: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+    def take(self, rows: np.ndarray) -> Transitions:
+        return Transitions(self.x[rows], self.actions[rows], self.x_next[rows], self.terminal[rows])
+
+
+def expert_transitions(demos: Sequence[Trajectory], scale) -> Transitions:
+    """Every demonstrated (s, a, s'), terminal where the demonstration ended in arrival or collision."""
+    parts = []
+    for t in demos:
+        n = len(t)
+        if n == 0:
+            continue
+        terminal = np.zeros(n, bool)
+        terminal[-1] = t.outcome in ("success", "collision")
+        parts.append((scale(t.features[:-1]), np.asarray(t.actions), scale(t.features[1:]), terminal))
+    if not parts:
+        raise ValueError("the demonstrations hold no state-action pair: there is nothing to imitate")
+    return Transitions(*(np.concatenate(p) for p in zip(*parts, strict=True)))
+
+
+def _tensors(t: Transitions) -> tuple[torch.Tensor, ...]:
+    as_tensor = torch.as_tensor
+    return (as_tensor(t.x, dtype=torch.float32), as_tensor(t.actions, dtype=torch.long),
+            as_tensor(t.x_next, dtype=torch.float32), as_tensor(t.terminal, dtype=torch.bool))  # fmt: skip
+
+
+def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    """ln pi(a | s) (N,) under an SB3 actor-critic policy (0 without one: GAIL does not read it)."""
+    if policy is None:
+        return torch.zeros(len(actions))
+    with torch.no_grad():
+        _, log_prob, _ = policy.evaluate_actions(x, actions)
+    return log_prob
+
+
+class AdversarialReward:
+    """The discriminator, its optimiser and the expert's pairs; rewards and updates."""
+
+    def __init__(self, kind: str, gamma: float, demos: Transitions, seed: int) -> None:
+        self.kind = kind
+        self.discriminator = make_discriminator(kind, gamma, seed)
+        self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
+        self.demos = demos
+        self.rng = np.random.default_rng(seed)
+        self.policy: Any = None  # the PPO policy, for AIRL's ln pi(a | s)
+
+    def rewards(self, batch: Transitions) -> np.ndarray:
+        """The policy's rewards (N,) for the learner's transitions."""
+        x, a, x_next, terminal = _tensors(batch)
+        with torch.no_grad():
+            logits = self.discriminator.logits(x, a, x_next, terminal, log_pi(self.policy, x, a))
+            return self.discriminator.policy_reward(logits).numpy().astype(np.float32)
+
+    def update(self, learner: Transitions) -> float:
+        """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
+        returns the last minibatch's loss."""
+        loss_value = float("nan")
+        size = SETTINGS["batch_size"]
+        for _ in range(SETTINGS["epochs"]):
+            order = self.rng.permutation(len(learner))
+            for start in range(0, len(order), size):
+                mine = learner.take(order[start : start + size])
+                theirs = self.demos.take(self.rng.integers(0, len(self.demos), len(mine)))
+                logits = []
+                for side in (theirs, mine):
+                    x, a, x_next, terminal = _tensors(side)
+                    logits.append(
+                        self.discriminator.logits(x, a, x_next, terminal, log_pi(self.policy, x, a))
+                    )
+                loss = discriminator_loss(*logits)
+                self.optimiser.zero_grad()
+                loss.backward()
+                self.optimiser.step()
+                loss_value = float(loss.detach())
+        return loss_value
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {k: v.detach().numpy().copy() for k, v in self.discriminator.state_dict().items()}
+
+    def load_state(self, arrays: dict[str, np.ndarray]) -> None:
+        self.discriminator.load_state_dict({k: torch.as_tensor(v) for k, v in arrays.items()})
+
+
+def save_discriminator(run: RunDir, reward: AdversarialReward) -> None:
+    write_npz(run.file(DISCRIMINATOR_FILE), reward.state())
+
+
+def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
+    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .))."""
+    run = RunDir(run_dir)
+    path = run.file(DISCRIMINATOR_FILE)
+    if not path.is_file():
+        raise RunError(f"{run} has no {DISCRIMINATOR_FILE}: its training has not reached a checkpoint")
+    discriminator = make_discriminator(kind, gamma)
+    with np.load(path) as data:
+        discriminator.load_state_dict({k: torch.as_tensor(data[k]) for k in data.files})
+    return discriminator
+
+
+def reward_wrapper(venv, reward: AdversarialReward):
+    """``venv`` with every reward replaced by the discriminator's; it also keeps the transitions
+    since the last :meth:`take` for the discriminator's update."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class DiscriminatorReward(VecEnvWrapper):
+        def __init__(self) -> None:
+            super().__init__(venv)
+            self.last_obs: np.ndarray | None = None
+            self.kept: list[Transitions] = []
+
+        def reset(self):
+            self.last_obs = self.venv.reset()
+            return self.last_obs
+
+        def step_async(self, actions) -> None:
+            self.actions = np.asarray(actions)
+            self.venv.step_async(actions)
+
+        def step_wait(self):
+            obs, _, dones, infos = self.venv.step_wait()  # the task's reward is dropped here
+            x_next = obs.copy()
+            terminal = np.zeros(len(dones), bool)
+            for i, (done, info) in enumerate(zip(dones, infos, strict=True)):
+                if done:
+                    x_next[i] = info["terminal_observation"]
+                    terminal[i] = not info.get("TimeLimit.truncated", False)
+            batch = Transitions(
+                self.last_obs.copy(), self.actions.reshape(-1).astype(np.int64), x_next, terminal
+            )
+            self.kept.append(batch)
+            self.last_obs = obs
+            return obs, reward.rewards(batch), dones, infos
+
+        def take(self) -> Transitions:
+            kept, self.kept = self.kept, []
+            if not kept:
+                return Transitions(np.zeros((0, 16), np.float32), np.zeros(0, np.int64),
+                                   np.zeros((0, 16), np.float32), np.zeros(0, bool))  # fmt: skip
+            columns = zip(*((k.x, k.actions, k.x_next, k.terminal) for k in kept), strict=True)
+            return Transitions(*(np.concatenate(c) for c in columns))
+
+    return DiscriminatorReward()
+
+
+def training_callback(wrapper, reward: AdversarialReward):
+    """An SB3 callback: after each rollout the discriminator learns on it (before PPO's update)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class DiscriminatorTraining(BaseCallback):
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_end(self) -> None:
+            reward.policy = self.model.policy
+            loss = reward.update(wrapper.take())
+            self.logger.record("discriminator/loss", loss)
+
+    return DiscriminatorTraining()

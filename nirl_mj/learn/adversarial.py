@@ -1,0 +1,107 @@
+"""The discriminators of GAIL (Ho & Ermon 2016) and AIRL (Fu, Luo & Levine 2018), on torch.
+
+Both classify state-action pairs as the expert's (label 1) or the learner's (label 0) with the
+logistic loss, and hand the policy learner a reward derived from the classifier. Inputs are
+phi(s) scaled to [0, 1] (16 values, as the RL reference sees them) and the action index 0..5.
+
+- **GAIL**: D(s, a) = sigmoid(l(s, a)), l an MLP with one output per action. The policy's
+  reward is -ln(1 - D(s, a)) = softplus(l(s, a)), the form of Ho & Ermon's algorithm 1 with
+  the labels as here (expert 1), in (0, inf).
+- **AIRL**: D(s, a, s') = exp f(s, a, s') / (exp f(s, a, s') + pi(a | s)), with
+  f = g(s, a) + gamma h(s') - h(s) (the shaped form of Fu et al., eq. 4; h(s') = 0 after a
+  terminal transition). Its logit is l = f - ln pi(a | s), and the policy's reward is
+  ln D - ln(1 - D) = l. The learned reward is g(s, a), one value per action, saved with the run
+  like NIRL's r_theta (``AirlDiscriminator.reward``). Fu et al. use a state-only g(s) to
+  disentangle the reward from the dynamics; g(s, a) is used here so that the reward ranks the six
+  actions in a state as r_theta does (their state-action variant).
+
+Units: logits and rewards are nats; gamma is the policy learner's discount.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch.nn import functional
+
+N_INPUTS, N_ACTIONS = 16, 6
+
+
+def mlp(n_in: int, n_out: int, hidden: int, generator: torch.Generator) -> torch.nn.Sequential:
+    """n_in -> hidden -> hidden -> n_out, tanh hidden units, initialised from ``generator``."""
+    linear, tanh = torch.nn.Linear, torch.nn.Tanh
+    layers = [linear(n_in, hidden), tanh(), linear(hidden, hidden), tanh(), linear(hidden, n_out)]
+    with torch.no_grad():
+        for layer in layers:
+            if isinstance(layer, torch.nn.Linear):
+                bound = 1.0 / np.sqrt(layer.in_features)
+                layer.weight.copy_(torch.rand(layer.weight.shape, generator=generator) * 2 * bound - bound)
+                layer.bias.zero_()
+    return torch.nn.Sequential(*layers)
+
+
+class GailDiscriminator(torch.nn.Module):
+    """GAIL's D(s, a) = sigmoid(l(s, a)); ``logits(x, a, x_next, terminal, log_pi)`` reads x and a only."""
+
+    kind = "gail"
+
+    def __init__(self, hidden: int = 64, seed: int = 0) -> None:
+        super().__init__()
+        self.net = mlp(N_INPUTS, N_ACTIONS, hidden, torch.Generator().manual_seed(seed))
+
+    def logits(self, x, actions, x_next=None, terminal=None, log_pi=None) -> torch.Tensor:
+        """l(s, a) (N,): x (N, 16) scaled phi(s), actions (N,) int."""
+        return self.net(x).gather(1, actions.long()[:, None])[:, 0]
+
+    @staticmethod
+    def policy_reward(logits: torch.Tensor) -> torch.Tensor:
+        """-ln(1 - D) = softplus(l) (N,)."""
+        return functional.softplus(logits)
+
+
+class AirlDiscriminator(torch.nn.Module):
+    """AIRL's D with f = g(s, a) + gamma h(s') - h(s); the logit l = f - ln pi(a | s)."""
+
+    kind = "airl"
+
+    def __init__(self, gamma: float, hidden: int = 64, seed: int = 0) -> None:
+        super().__init__()
+        generator = torch.Generator().manual_seed(seed)
+        self.gamma = float(gamma)
+        self.g = mlp(N_INPUTS, N_ACTIONS, hidden, generator)
+        self.h = mlp(N_INPUTS, 1, hidden, generator)
+
+    def f(self, x, actions, x_next, terminal) -> torch.Tensor:
+        """f(s, a, s') (N,); ``terminal`` (N,) bool: h(s') = 0 after a terminal transition."""
+        g = self.g(x).gather(1, actions.long()[:, None])[:, 0]
+        h_next = self.h(x_next)[:, 0] * (~terminal.bool())
+        return g + self.gamma * h_next - self.h(x)[:, 0]
+
+    def logits(self, x, actions, x_next, terminal, log_pi) -> torch.Tensor:
+        """l = f(s, a, s') - ln pi(a | s) (N,)."""
+        return self.f(x, actions, x_next, terminal) - log_pi
+
+    @staticmethod
+    def policy_reward(logits: torch.Tensor) -> torch.Tensor:
+        """ln D - ln(1 - D) = l (N,)."""
+        return logits
+
+    def reward(self, x: np.ndarray) -> np.ndarray:
+        """The learned reward g(s, .) (N, 6) in the scaled states x (N, 16)."""
+        with torch.no_grad():
+            return self.g(torch.as_tensor(np.asarray(x, dtype=np.float32))).numpy()
+
+
+def discriminator_loss(expert_logits: torch.Tensor, learner_logits: torch.Tensor) -> torch.Tensor:
+    """The logistic loss, expert pairs labelled 1 and the learner's 0, each side averaged:
+    mean softplus(-l_E) + mean softplus(l_pi) = -mean ln D(expert) - mean ln(1 - D(learner))."""
+    return functional.softplus(-expert_logits).mean() + functional.softplus(learner_logits).mean()
+
+
+def make_discriminator(kind: str, gamma: float, seed: int = 0) -> GailDiscriminator | AirlDiscriminator:
+    """The discriminator of ``kind`` ("gail" or "airl")."""
+    if kind == "gail":
+        return GailDiscriminator(seed=seed)
+    if kind == "airl":
+        return AirlDiscriminator(gamma, seed=seed)
+    raise ValueError(f"unknown discriminator {kind!r}: accepted: gail, airl")

@@ -1,0 +1,107 @@
+"""GAIL and AIRL: their discriminators by hand, the reward wrapper, and a short run of each."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from nirl_mj.learn.adversarial import (
+    AirlDiscriminator,
+    GailDiscriminator,
+    discriminator_loss,
+    make_discriminator,
+)
+
+
+def constant_heads(disc: torch.nn.Module, **biases: list[float]) -> None:
+    """Zero every weight; the last layer of each named head outputs its bias whatever the input."""
+    with torch.no_grad():
+        for p in disc.parameters():
+            p.zero_()
+        for name, bias in biases.items():
+            getattr(disc, name)[-1].bias.copy_(torch.tensor(bias))
+
+
+def test_discriminator_loss_by_hand():
+    zero = torch.zeros(1)
+    assert float(discriminator_loss(zero, zero)) == pytest.approx(2 * math.log(2))
+    # expert logit ln 3 (D = 3/4): -ln(3/4); learner logit ln 3: -ln(1 - 3/4) = ln 4
+    l3 = torch.tensor([math.log(3.0)])
+    assert float(discriminator_loss(l3, l3)) == pytest.approx(math.log(4 / 3) + math.log(4))
+
+
+def test_gail_logits_pick_the_action_and_reward_is_minus_log_one_minus_d():
+    disc = GailDiscriminator()
+    constant_heads(disc, net=[0.0, 1.0, 2.0, 3.0, 4.0, math.log(3.0)])
+    x = torch.zeros((2, 16))
+    logits = disc.logits(x, torch.tensor([1, 5]))
+    np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-6)
+    # D = 3/4 at logit ln 3: -ln(1 - 3/4) = ln 4
+    assert float(disc.policy_reward(logits)[1]) == pytest.approx(math.log(4.0), rel=1e-6)
+
+
+def test_airl_f_shaping_terminal_and_logit_by_hand():
+    disc = AirlDiscriminator(gamma=0.5)
+    constant_heads(disc, g=[1.0, 2.0, 0.0, 0.0, 0.0, 0.0], h=[4.0])
+    x = torch.zeros((2, 16))
+    actions, terminal = torch.tensor([0, 1]), torch.tensor([False, True])
+    # f = g(s, a) + gamma h(s') - h(s): 1 + 2 - 4 = -1; terminal: h(s') = 0, 2 - 4 = -2
+    np.testing.assert_allclose(disc.f(x, actions, x, terminal).detach().numpy(), [-1.0, -2.0], rtol=1e-6)
+    # the logit subtracts ln pi(a | s); the policy's reward is the logit
+    log_pi = torch.tensor([math.log(0.5), math.log(0.25)])
+    logits = disc.logits(x, actions, x, terminal, log_pi)
+    np.testing.assert_allclose(logits.detach().numpy(), [-1 + math.log(2), -2 + math.log(4)], rtol=1e-6)
+    assert torch.equal(disc.policy_reward(logits), logits)
+    np.testing.assert_allclose(disc.reward(np.zeros((1, 16))), [[1, 2, 0, 0, 0, 0]])
+    with pytest.raises(ValueError, match="accepted: gail, airl"):
+        make_discriminator("wgan", 0.9)
+
+
+class Corridor:
+    """A gymnasium env: 16 zeros then the step count in x[0]; ends (terminated) after 2 steps,
+    with a task reward of 100 that the wrapper must drop."""
+
+    def __new__(cls):
+        gymnasium = pytest.importorskip("gymnasium")
+
+        class Env(gymnasium.Env):
+            observation_space = gymnasium.spaces.Box(0.0, 10.0, (16,), np.float32)
+            action_space = gymnasium.spaces.Discrete(6)
+
+            def reset(self, seed=None, options=None):
+                self.t = 0
+                return np.zeros(16, np.float32), {}
+
+            def step(self, action):
+                self.t += 1
+                obs = np.zeros(16, np.float32)
+                obs[0] = self.t
+                return obs, 100.0, self.t == 2, False, {}
+
+        return Env()
+
+
+def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
+    pytest.importorskip("stable_baselines3")  # the optional extra nirl-mj[gym]
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+
+    demos = Transitions(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    reward = AdversarialReward("gail", 0.99, demos, seed=0)
+    constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 everywhere
+    venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
+    first = venv.reset()
+    rewards = []
+    for action in (3, 4):
+        venv.step_async(np.array([action]))
+        _, r, done, _ = venv.step_wait()
+        rewards.append(float(r[0]))
+    np.testing.assert_allclose(rewards, [math.log(2)] * 2, rtol=1e-6)  # never the task's 100
+    kept = venv.take()
+    np.testing.assert_array_equal(kept.actions, [3, 4])
+    np.testing.assert_array_equal(kept.x[0], first[0])
+    assert kept.x_next[1][0] == 2.0  # the terminal observation, not the next episode's first
+    np.testing.assert_array_equal(kept.terminal, [False, True])
+    assert len(venv.take()) == 0  # taken once
