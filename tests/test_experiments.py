@@ -54,7 +54,8 @@ methods = ["NIRL", "rule"]
 obstacles = [3]
 speeds = [1.0, 2.0]
 """
-TABLE1_ROWS = ["NIRL", "NIRL-paper", "AL", "RE", "SCIRL", "BC", "forward", "rule"]
+TABLE1_ROWS = ["NIRL", "NIRL-paper", "AL", "RE", "SCIRL", "AL-traj", "RE-traj", "GAIL", "AIRL", "DAgger",
+               "BC", "PPO-reward", "forward", "rule"]  # fmt: skip
 
 
 def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
@@ -74,7 +75,9 @@ def test_shipped_experiments_load_full_and_quick():
     assert (table1.task.arena.static_obstacles, table1.task.control.speed) == (20, 2.0)
     paper = {name: tuple(row[k] for k in ("avg", "best", "worst")) for name, row in table1.paper.items()}
     assert paper == {"NIRL": (83, 94, 69), "NIRL-paper": (83, 94, 69), "AL": (66, 82, 43), "RE": (78, 87, 61),
-                     "SCIRL": (79, 88, 60)}  # fmt: skip
+                     "AL-traj": (66, 82, 43), "RE-traj": (78, 87, 61), "SCIRL": (79, 88, 60)}  # fmt: skip
+    assert {m.name: m.steps for m in load_experiment("table1", quick=True).methods if m.kind == "rl"} == {
+        "GAIL": 2048, "AIRL": 2048, "PPO-reward": 2048}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
     assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
     assert quick.methods[1].learner_config(quick.config).loop.variant == "paper"
@@ -111,7 +114,7 @@ def test_every_shipped_experiment_file_loads_full_and_quick(path):
         ({"obstacles": [5]}, "unknown key(s) obstacles (kind compare)"),
         ({"runs": 0}, "runs = 0: must be >= 1"),
         ({"tests": 2.5}, "tests = 2.5: expected a whole number"),
-        ({"methods": ["NIRL", "GAIL"]}, "unknown method 'GAIL'; built in: NIRL, NIRL-paper"),
+        ({"methods": ["NIRL", "WGAN"]}, "unknown method 'WGAN'; built in: NIRL, NIRL-paper"),
         ({"methods": "NIRL"}, "methods = 'NIRL': expected a list"),
         ({"config": {"episode": 3}}, "config: unknown key(s) episode; accepted: episodes"),
         ({"config": {"episodes": "3"}}, "config.episodes = '3': expected a int"),

@@ -259,11 +259,15 @@ def cmd_rl(args: argparse.Namespace) -> int:
     import gymnasium  # noqa: F401  (the optional extra: missing, it fails here, before any work)
     import stable_baselines3  # noqa: F401
 
-    from nirl_mj.experiments.rl import train_rl
+    from nirl_mj.experiments.adversarial import DISCRIMINATOR_FILE
+    from nirl_mj.experiments.rl import ADVERSARIAL, train_rl
 
+    if (args.algo in ADVERSARIAL) != bool(args.demos):
+        raise SpecError(f"--demos goes with --algo gail or airl (the demonstrations they imitate); got "
+                        f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
     out = RunDir(args.out)
     if args.overwrite and not args.resume and not out.is_empty():
-        extra = out.names() - {RUN_FILE, MODEL_FILE, EVAL_FILE}
+        extra = out.names() - {RUN_FILE, MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
         if not out.is_run or out.read_record().get("kind") != "rl" or extra:
             raise RunError(f"{out} is not an RL run directory; --overwrite replaces only an RL run")
         shutil.rmtree(out.path)
@@ -279,7 +283,8 @@ def cmd_rl(args: argparse.Namespace) -> int:
             bar.update(n)
             bar.set_postfix(episodes=stats["episodes"], succ=f"{stats['success']:.2f}", refresh=False)
 
-        record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress)
+        record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress,
+                          demos=args.demos)  # fmt: skip
     arenas = len(record["train_seeds"])
     print(f"trained {args.algo} for {record['steps_done']} decisions ({arenas} training arenas) on "
           f"{spec.name}; run in {args.out} (test it with nirl-mj eval --run {args.out})")  # fmt: skip

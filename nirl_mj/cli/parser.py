@@ -153,10 +153,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
 
-    p = _command(sub, "rl", c.cmd_rl, "reference: train Stable-Baselines3 on the task's reward and phi(s) "
+    p = _command(sub, "rl", c.cmd_rl, "Stable-Baselines3 on phi(s): PPO/DQN on the task's reward (the RL "
+                 "reference), or GAIL/AIRL (PPO on a discriminator's reward, from --demos) "
                  "(needs nirl-mj[gym]; resumable)", "quiet", "overwrite")
     p.set_defaults(interrupted="checkpoints are kept: continue with nirl-mj rl --out {out} --resume")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--demos", help="gail and airl: the demonstrations to imitate (a dataset path)")
     p.add_argument("--steps", type=_positive_int, default=50_000, help="decisions to train (default: 50000)")
     p.add_argument("--seed", type=int, default=0, help="training seed (network, arenas)")
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")

@@ -10,9 +10,9 @@ A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
 preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), DAgger with the
 demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a reference policy
-(``"forward"``, ``"rule"``), or reinforcement learning on the task's reward (``"rl"``:
-Stable-Baselines3, ``nirl_mj.experiments.rl``; compare experiments only, needs
-``nirl-mj[gym]``). The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]`` tables add
+(``"forward"``, ``"rule"``), or a Stable-Baselines3 learner (``"rl"``, ``nirl_mj.experiments.rl``;
+compare experiments only, needs ``nirl-mj[gym]``): PPO or DQN on the task's reward (the RL
+reference), or GAIL / AIRL, PPO on a discriminator's reward learned from the demonstrations. The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]`` tables add
 others or change built-in ones.
 
 ``[quick]`` holds values of the same keys that ``--quick`` uses instead (tables
@@ -95,6 +95,9 @@ BUILTIN_METHODS = {
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
     "PPO-reward": MethodSpec("PPO-reward", "rl", algo="ppo", steps=50_000),
+    # adversarial imitation: PPO (the RL reference's settings and budget) on a discriminator's reward
+    "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=50_000),
+    "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=50_000),
 }
 """The methods an experiment may list without defining them."""
 
