@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from helpers import OPEN, progress
 
 from nirl_mj.learn.adversarial import (
     AirlDiscriminator,
@@ -105,3 +106,32 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
     assert kept.x_next[1][0] == 2.0  # the terminal observation, not the next episode's first
     np.testing.assert_array_equal(kept.terminal, [False, True])
     assert len(venv.take()) == 0  # taken once
+
+
+@pytest.mark.parametrize("algo", ["gail", "airl"])
+def test_a_short_adversarial_run_beats_the_uniform_random_policy(tmp_path, algo):
+    pytest.importorskip("stable_baselines3")
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments.adversarial import DISCRIMINATOR_FILE, load_discriminator
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.experiments.rl import load_rl_policy, train_rl
+    from nirl_mj.experiments.seeds import domain_seeds
+    from nirl_mj.sim.task import make_env
+
+    task = OPEN
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(task, ExpertConfig("rule"), episodes=4, seed=0))
+    record = train_rl(tmp_path / "run", task, algo, STEPS, seed=0, demos=demos)
+    assert (tmp_path / "run" / DISCRIMINATOR_FILE).is_file() and record["demos"] == str(demos)
+    policy, _ = load_rl_policy(tmp_path / "run")
+    tests = domain_seeds("test", 0, 6)
+    _, learned = evaluate(make_env(task), policy, tests)
+    rng = np.random.default_rng(0)
+    _, random = evaluate(make_env(task), lambda phi: int(rng.integers(6)), tests)
+    assert progress(learned) > progress(random) + 0.25
+    if algo == "airl":  # the learned reward g(s, .) reads back, one value per action
+        assert load_discriminator(tmp_path / "run", "airl", 0.99).reward(np.zeros((2, 16))).shape == (2, 6)
+
+
+STEPS = 8192

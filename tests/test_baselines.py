@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import OPEN, progress
 
 from nirl_mj.data.dataset import save_dataset
 from nirl_mj.data.rundir import RunDir
@@ -296,13 +297,6 @@ def test_scirl_reward_is_fitted_once_and_prefers_the_experts_actions():
 # -- short runs of the shared loop ----------------------------------------------------------------
 
 TINY = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 8})
-# An open arena (no obstacle inside the walls) the rule expert crosses in ~28 decisions: a budget
-# of 10 iterations learns to reach the target there, and a uniform random policy does not.
-OPEN = spec.replace(
-    spec.load_task("navigate"),
-    arena={"size": (30.0, 30.0), "start": (5.0, 5.0), "target": (25.0, 25.0), "static_obstacles": 0},
-    robot={"drive": "planar"},
-)
 
 
 @pytest.fixture(scope="module")
@@ -340,16 +334,6 @@ def test_resume_of_a_baseline_run_ends_with_the_uninterrupted_weights(tmp_path, 
     assert np.abs(whole["theta"]).sum() > 0  # the reward step did run
     lines = (tmp_path / "split" / "metrics.jsonl").read_text().splitlines()
     assert lines == (tmp_path / "whole" / "metrics.jsonl").read_text().splitlines()
-
-
-def progress(trajectories: list[Trajectory]) -> float:
-    """Mean share of the start-to-target distance covered by the end of each episode (1: arrived)."""
-    shares = []
-    for t in trajectories:
-        target = np.asarray(t.task["arena"]["target"])
-        start, end = (np.hypot(*(t.poses[i, :2] - target)) for i in (0, -1))
-        shares.append(1.0 if t.success else (start - end) / start)
-    return float(np.mean(shares))
 
 
 @pytest.fixture(scope="module")

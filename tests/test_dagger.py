@@ -2,21 +2,15 @@
 
 import numpy as np
 import pytest
+from helpers import OPEN
 
 from nirl_mj.data.trajectory import stack_pairs
 from nirl_mj.experiments.dagger import DaggerConfig, LabellingAgent, train_dagger
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.seeds import domain_seeds
-from nirl_mj.sim import spec
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.task import make_env
-
-OPEN = spec.replace(
-    spec.load_task("navigate"),
-    arena={"size": (30.0, 30.0), "start": (5.0, 5.0), "target": (25.0, 25.0), "static_obstacles": 0},
-    robot={"drive": "planar"},
-)
 
 
 class CountingExpert:
