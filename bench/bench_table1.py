@@ -9,9 +9,15 @@ last cell finishes) is multiplied too, so the projection errs on the long side.
 With ``--existing DIR``, it also reads the cell times of a finished
 (or partial) ``nirl-mj compare`` directory: the core time the real protocol took.
 Target (issue #6): the full protocol within 90 minutes on a 2-core machine.
+With ``--existing-only`` it times nothing new and reports the existing directory's cells alone,
+with the core-minutes per run of each method and how many 2-core machines would bring the
+25-run protocol under 15 minutes: every cell is independent, so with M machines the wall time is
+at least max(total core time / (2 M efficiency), the longest cell); ``--efficiency`` is the
+executor's measured scaling (bench/bench_executors.py: a local 2-worker Ray cluster, warm).
 Writes docs/PERFORMANCE.md.
 
     python bench/bench_table1.py [--runs 2] [--workers 2] [--existing runs/table1] [--quick]
+    python bench/bench_table1.py --existing runs/table1 --existing-only [--efficiency 1.0]
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import statistics
 import tempfile
 import time
@@ -55,6 +62,32 @@ def method_rows(times: dict[str, list[float]]) -> list[list[str]]:
     return rows
 
 
+def existing_report(out: Path, runs: int, efficiency: float, minutes: float = 15.0, cores: int = 2) -> str:
+    """Core-minutes per run of each method in ``out``'s cells, the protocol's projected core time and
+    the 2-core machines it needs to finish within ``minutes``."""
+    times = cell_seconds(out)
+    rows = [[m, str(len(t)), f"{statistics.median(t):.0f}", f"{statistics.mean(t) / 60:.1f}",
+             f"{max(t) / 60:.1f}"] for m, t in times.items()]  # fmt: skip
+    per_run = sum(statistics.mean(t) for t in times.values()) / 60
+    longest = max(max(t) for t in times.values()) / 60
+    protocol = per_run * runs
+    machines = math.ceil(protocol / (minutes * cores * efficiency))
+    lines = [
+        f"The cells of `{out}` ({sum(len(t) for t in times.values())} cells of {len(times)} methods; core "
+        "time of each cell as it ran, 2 workers on 2 cores, so each cell shared the machine with one other):",
+        "",
+        markdown_table(["method", "cells", "median (s)", "core-min per run (mean)", "longest (min)"], rows),
+        "",
+        f"One run of every method: **{per_run:.0f} core-minutes**; the {runs}-run protocol: "
+        f"**{protocol:.0f} core-minutes**, {protocol / cores:.0f} min on one {cores}-core machine "
+        f"(the 2-hour target is {'met' if protocol / cores <= 120 else 'not met'}).",
+        f"Machines of {cores} cores to finish within {minutes:.0f} minutes, every cell independent, at "
+        f"{efficiency:.0%} scaling per worker: **{machines}** (the longest cell, {longest:.1f} min, "
+        f"{'fits' if longest <= minutes else 'does not fit'} in {minutes:.0f} minutes).",
+    ]
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=2, help="runs to time (the protocol has 25)")
@@ -62,11 +95,23 @@ def main() -> None:
     parser.add_argument("--existing", type=Path, help="a `nirl-mj compare` directory to read cell times from")
     parser.add_argument("--quick", action="store_true", help="the protocol's [quick] version (a smoke test)")
     parser.add_argument("--no-write", action="store_true", help="print only")
+    parser.add_argument("--existing-only", action="store_true", help="report --existing alone (time nothing)")
+    parser.add_argument("--efficiency", type=float, default=1.0,
+                        help="the executor's scaling per worker, for the machine estimate")  # fmt: skip
     args = parser.parse_args()
     if args.runs < 1 or args.workers < 1:
         parser.error(f"--runs {args.runs} --workers {args.workers}: both must be at least 1")
     if args.existing and not (args.existing / "cells").is_dir():
         parser.error(f"--existing {args.existing}: not a `nirl-mj compare` directory (no cells/ in it)")
+
+    if args.existing_only:
+        if not args.existing:
+            parser.error("--existing-only needs --existing DIR")
+        body = existing_report(args.existing, load_experiment("table1").runs, args.efficiency)
+        print(body)
+        if not args.no_write:
+            write_section("Table I protocol (bench/bench_table1.py)", body)
+        return
 
     full = load_experiment("table1", quick=args.quick)
     experiment = dataclasses.replace(full, runs=args.runs)
