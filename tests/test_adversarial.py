@@ -130,8 +130,14 @@ def test_a_short_adversarial_run_beats_the_uniform_random_policy(tmp_path, algo)
     rng = np.random.default_rng(0)
     _, random = evaluate(make_env(task), lambda phi: int(rng.integers(6)), tests)
     assert progress(learned) > progress(random) + 0.25
-    if algo == "airl":  # the learned reward g(s, .) reads back, one value per action
-        assert load_discriminator(tmp_path / "run", "airl", 0.99).reward(np.zeros((2, 16))).shape == (2, 6)
+    if algo == "airl":  # the learned reward g(s, .) reads back, and a subject shows it like r_theta
+        from nirl_mj.experiments.subjects import run_subject
+
+        g = load_discriminator(tmp_path / "run", "airl", 0.99).reward(np.zeros((2, 16)))
+        reward = run_subject(tmp_path / "run").reward()
+        phi = np.zeros((2, 16), np.float32)
+        np.testing.assert_allclose(reward.rewards_all_actions(phi), g, rtol=1e-6)
+        np.testing.assert_allclose(reward.reward(phi, np.array([1, 4])), g[[0, 1], [1, 4]], rtol=1e-6)
 
 
 STEPS = 8192

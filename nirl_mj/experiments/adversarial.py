@@ -143,6 +143,27 @@ def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
     return discriminator
 
 
+class AirlReward:
+    """An AIRL run's learned reward g(s, a) on phi(s), with RewardModel's reading methods (so reward
+    maps and Rerun recordings show it as they show r_theta). Units: nats, per decision."""
+
+    def __init__(self, run_dir, gamma: float) -> None:
+        from nirl_mj.experiments.rl import scaled
+
+        self.discriminator, self.scale = load_discriminator(run_dir, "airl", gamma), scaled
+
+    def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
+        """g(s, a) for every action: phi (N, 16) -> (N, 6)."""
+        return self.discriminator.reward(self.scale(np.atleast_2d(phi))).astype(np.float64)
+
+    def reward(self, phi: np.ndarray, action: int | np.ndarray) -> np.ndarray:
+        """g(s, a) for phi (..., 16) and actions (...) -> (...)."""
+        phi = np.atleast_2d(phi)
+        flat = phi.reshape(-1, phi.shape[-1])
+        actions = np.broadcast_to(np.asarray(action), phi.shape[:-1]).ravel().astype(int)
+        return self.rewards_all_actions(flat)[np.arange(len(flat)), actions]
+
+
 def reward_wrapper(venv, reward: AdversarialReward):
     """``venv`` with every reward replaced by the discriminator's; it also keeps the transitions
     since the last :meth:`take` for the discriminator's update."""

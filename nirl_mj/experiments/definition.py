@@ -9,11 +9,12 @@ file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
 A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
 preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), DAgger with the
-demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a reference policy
-(``"forward"``, ``"rule"``), or a Stable-Baselines3 learner (``"rl"``, ``nirl_mj.experiments.rl``;
-compare experiments only, needs ``nirl-mj[gym]``): PPO or DQN on the task's reward (the RL
-reference), or GAIL / AIRL, PPO on a discriminator's reward learned from the demonstrations. The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]`` tables add
-others or change built-in ones.
+demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a
+reference policy (``"forward"``, ``"rule"``), or a Stable-Baselines3 learner (``"rl"``,
+``nirl_mj.experiments.rl``; compare experiments only, needs ``nirl-mj[gym]``): PPO or DQN on
+the task's reward (the RL reference), or GAIL / AIRL, PPO on a discriminator's reward learned
+from the demonstrations. The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]``
+tables add others or change built-in ones.
 
 ``[quick]`` holds values of the same keys that ``--quick`` uses instead (tables
 merged key by key): the smoke version of the same experiment.

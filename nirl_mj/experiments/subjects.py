@@ -42,8 +42,15 @@ class Subject:
         return held_out_seeds(seed, count, set(self.seen))
 
     def reward(self) -> RewardModel | None:
-        """A trained run's selected reward (None for a reference policy)."""
-        if self.run is None or not self.run.has_reward:
+        """A trained run's selected reward (an AIRL run's: its g(s, a)); None for a reference policy."""
+        if self.run is None:
+            return None
+        record = self.run.read_record()
+        if record.get("kind") == "rl" and record.get("algo") == "airl":
+            from nirl_mj.experiments.adversarial import AirlReward
+
+            return AirlReward(self.run.path, record["config"]["gamma"])
+        if not self.run.has_reward:
             return None
         return RewardModel.from_dict(self.run.read_reward(), str(self.run.path))
 
