@@ -83,6 +83,15 @@ def test_overwrite_replaces_only_an_rl_run(tmp_path, capsys):
     assert (other / "notes.txt").read_text() == "mine"
 
 
+def test_gail_and_airl_need_demos_and_the_others_refuse_them(tmp_path, capsys):
+    assert main(["rl", "--algo", "gail", "--out", str(tmp_path / "g"), "--quiet", *SMALL]) == 2
+    assert "--demos goes with --algo gail or airl" in capsys.readouterr().err
+    ppo = ["rl", "--algo", "ppo", "--demos", "d.npz", "--out", str(tmp_path / "p"), "--quiet", *SMALL]
+    assert main(ppo) == 2
+    assert "got --algo ppo with --demos" in capsys.readouterr().err
+    assert not (tmp_path / "g").exists() and not (tmp_path / "p").exists()
+
+
 def test_rl_methods_are_validated_in_experiment_files():
     data = {"kind": "compare", "methods": ["PPO-reward", "DQN"],
             "method": {"DQN": {"kind": "rl", "algo": "dqn", "steps": 100}}}  # fmt: skip
@@ -91,7 +100,7 @@ def test_rl_methods_are_validated_in_experiment_files():
         ("rl", "ppo", 50_000),
         ("rl", "dqn", 100),
     ]
-    with pytest.raises(ExperimentError, match="accepted: ppo, dqn"):
+    with pytest.raises(ExperimentError, match="accepted: ppo, dqn, gail, airl"):
         from_dict({**data, "method": {"DQN": {"kind": "rl", "algo": "a2c"}}})
     with pytest.raises(ExperimentError, match='algo and steps apply to kind = "rl" only'):
         from_dict({"kind": "compare", "methods": ["X"], "method": {"X": {"kind": "bc", "steps": 3}}})
