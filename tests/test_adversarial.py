@@ -83,6 +83,23 @@ class Corridor:
         return Env()
 
 
+def test_expert_transitions_end_terminal_only_in_terminal_states():
+    from nirl_mj.data.trajectory import Trajectory
+    from nirl_mj.experiments.adversarial import expert_transitions
+
+    def demo(outcome: str, n: int = 2) -> Trajectory:
+        return Trajectory(features=np.arange(16 * (n + 1), dtype=np.float32).reshape(n + 1, 16),
+                          actions=np.zeros(n, int), ranges=np.zeros((n + 1, 9)), poses=np.zeros((n + 1, 3)),
+                          times=0.5 * np.arange(n + 1), arena_seed=0, task={}, speed=2.0, outcome=outcome,
+                          demonstrator="test")  # fmt: skip
+
+    t = expert_transitions([demo("target"), demo("timeout"), demo("collision")], lambda phi: phi / 100)
+    np.testing.assert_array_equal(t.terminal, [False, True, False, False, False, True])
+    np.testing.assert_allclose(t.x_next[0], np.arange(16, 32) / 100)  # s' is the next state, scaled
+    with pytest.raises(ValueError, match="nothing to imitate"):
+        expert_transitions([demo("timeout", 0)], lambda phi: phi)
+
+
 def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
     pytest.importorskip("stable_baselines3")  # the optional extra nirl-mj[gym]
     from stable_baselines3.common.vec_env import DummyVecEnv

@@ -29,6 +29,7 @@ from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.learn.adversarial import discriminator_loss, make_discriminator
 
 DISCRIMINATOR_FILE = "discriminator.npz"
+TERMINAL_OUTCOMES = ("target", "collision", "physics_error")  # data.trajectory.OUTCOMES less "timeout"
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -50,14 +51,16 @@ class Transitions:
 
 
 def expert_transitions(demos: Sequence[Trajectory], scale) -> Transitions:
-    """Every demonstrated (s, a, s'), terminal where the demonstration ended in arrival or collision."""
+    """Every demonstrated (s, a, s'), terminal where the demonstration ended in a terminal state
+    (arrival, collision or a physics error, as the environment and NIRL's loop end them; a timeout
+    is a truncation)."""
     parts = []
     for t in demos:
         n = len(t)
         if n == 0:
             continue
         terminal = np.zeros(n, bool)
-        terminal[-1] = t.outcome in ("success", "collision")
+        terminal[-1] = t.outcome in TERMINAL_OUTCOMES
         parts.append((scale(t.features[:-1]), np.asarray(t.actions), scale(t.features[1:]), terminal))
     if not parts:
         raise ValueError("the demonstrations hold no state-action pair: there is nothing to imitate")
