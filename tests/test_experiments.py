@@ -367,6 +367,12 @@ methods = {json.dumps(TABLE1_ROWS)}
 [quick]
 runs = 2
 tests = 2
+[quick.method.GAIL]
+steps = 1024
+[quick.method.AIRL]
+steps = 1024
+[quick.method.PPO-reward]
+steps = 1024
 [paper.AL]
 avg = 66
 best = 82
@@ -393,7 +399,7 @@ worst = 43
 
     # Another experiment never writes into this directory; the same one resumes (nothing to do).
     assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet"]) == 2
-    assert "holds another experiment (it differs in: tests)" in capsys.readouterr().err
+    assert "holds another experiment (it differs in: methods, tests)" in capsys.readouterr().err
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     assert main(["compare", "--task", str(spec), "--quick", "--out", str(tmp_path / "other"), "--quiet"]) == 2
