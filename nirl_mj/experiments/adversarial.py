@@ -134,15 +134,21 @@ def save_discriminator(run: RunDir, reward: AdversarialReward) -> None:
     write_npz(run.file(DISCRIMINATOR_FILE), reward.state())
 
 
-def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
-    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .))."""
-    run = RunDir(run_dir)
+def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
+    """The discriminator's weights saved in ``run`` (a clear error if there are none yet)."""
     path = run.file(DISCRIMINATOR_FILE)
     if not path.is_file():
         raise RunError(f"{run} has no {DISCRIMINATOR_FILE}: its training has not reached a checkpoint")
-    discriminator = make_discriminator(kind, gamma)
     with np.load(path) as data:
-        discriminator.load_state_dict({k: torch.as_tensor(data[k]) for k in data.files})
+        return {k: data[k] for k in data.files}
+
+
+def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
+    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .))."""
+    discriminator = make_discriminator(kind, gamma)
+    discriminator.load_state_dict(
+        {k: torch.as_tensor(v) for k, v in read_discriminator(RunDir(run_dir)).items()}
+    )
     return discriminator
 
 

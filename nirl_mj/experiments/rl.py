@@ -139,8 +139,7 @@ def train_rl(
         expert = adv.expert_transitions(trajectories, scaled)
         reward = adv.AdversarialReward(algo, SETTINGS[algo]["gamma"], expert, seed)
         if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
-            with np.load(run.file(adv.DISCRIMINATOR_FILE)) as data:
-                reward.load_state({k: data[k] for k in data.files})
+            reward.load_state(adv.read_discriminator(run))
         venv = adv.reward_wrapper(venv, reward)
         callbacks.append(adv.training_callback(venv, reward))
     if resume and run.file(MODEL_FILE).is_file():
