@@ -16,7 +16,7 @@ Needs the optional extra ``nirl-mj[gym]``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -156,10 +156,9 @@ class AirlReward:
     """An AIRL run's learned reward g(s, a) on phi(s), with RewardModel's reading methods (so reward
     maps and Rerun recordings show it as they show r_theta). Units: nats, per decision."""
 
-    def __init__(self, run_dir, gamma: float) -> None:
-        from nirl_mj.experiments.rl import scaled
-
-        self.discriminator, self.scale = load_discriminator(run_dir, "airl", gamma), scaled
+    def __init__(self, run_dir, gamma: float, scale: Callable[[np.ndarray], np.ndarray]) -> None:
+        """``scale``: phi(s) -> the inputs the run was trained on (``experiments.rl.scaled``)."""
+        self.discriminator, self.scale = load_discriminator(run_dir, "airl", gamma), scale
 
     def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
         """g(s, a) for every action: phi (N, 16) -> (N, 6)."""

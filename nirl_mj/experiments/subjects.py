@@ -48,8 +48,9 @@ class Subject:
         record = self.run.read_record()
         if record.get("kind") == "rl" and record.get("algo") == "airl":
             from nirl_mj.experiments.adversarial import AirlReward
+            from nirl_mj.experiments.rl import scaled
 
-            return AirlReward(self.run.path, record["config"]["gamma"])
+            return AirlReward(self.run.path, record["config"]["gamma"], scaled)
         if not self.run.has_reward:
             return None
         return RewardModel.from_dict(self.run.read_reward(), str(self.run.path))
