@@ -22,6 +22,8 @@ from nirl_mj.data.features import N_ACTIONS, N_FEATURES, N_SENSORS
 
 OUTCOMES = ("target", "collision", "timeout", "physics_error")
 """How an episode can end (lower-case names of :class:`nirl_mj.sim.task.Outcome`, minus RUNNING)."""
+TERMINAL_OUTCOMES = ("target", "collision", "physics_error")
+"""The outcomes that end in a terminal state; a timeout truncates the episode instead."""
 
 
 def _frozen_array(value: Any, dtype: type, name: str) -> np.ndarray:

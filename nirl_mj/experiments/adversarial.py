@@ -25,11 +25,10 @@ import torch
 
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
-from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
 from nirl_mj.learn.adversarial import discriminator_loss, make_discriminator
 
 DISCRIMINATOR_FILE = "discriminator.npz"
-TERMINAL_OUTCOMES = ("target", "collision", "physics_error")  # data.trajectory.OUTCOMES less "timeout"
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -74,7 +73,7 @@ def _tensors(t: Transitions) -> tuple[torch.Tensor, ...]:
 
 
 def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    """ln pi(a | s) (N,) under an SB3 actor-critic policy (0 without one: GAIL does not read it)."""
+    """ln pi(a | s) (N,) under an SB3 actor-critic policy (0 without one)."""
     if policy is None:
         return torch.zeros(len(actions))
     with torch.no_grad():
@@ -86,19 +85,22 @@ class AdversarialReward:
     """The discriminator, its optimiser and the expert's pairs; rewards and updates."""
 
     def __init__(self, kind: str, gamma: float, demos: Transitions, seed: int) -> None:
-        self.kind = kind
         self.discriminator = make_discriminator(kind, gamma, seed)
         self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
         self.demos = demos
         self.rng = np.random.default_rng(seed)
         self.policy: Any = None  # the PPO policy, for AIRL's ln pi(a | s)
 
+    def logits(self, batch: Transitions) -> torch.Tensor:
+        """The discriminator's logits (N,); ln pi(a | s) is computed for AIRL only (GAIL ignores it)."""
+        x, a, x_next, terminal = _tensors(batch)
+        policy = self.policy if self.discriminator.kind == "airl" else None
+        return self.discriminator.logits(x, a, x_next, terminal, log_pi(policy, x, a))
+
     def rewards(self, batch: Transitions) -> np.ndarray:
         """The policy's rewards (N,) for the learner's transitions."""
-        x, a, x_next, terminal = _tensors(batch)
         with torch.no_grad():
-            logits = self.discriminator.logits(x, a, x_next, terminal, log_pi(self.policy, x, a))
-            return self.discriminator.policy_reward(logits).numpy().astype(np.float32)
+            return self.discriminator.policy_reward(self.logits(batch)).numpy().astype(np.float32)
 
     def update(self, learner: Transitions) -> float:
         """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
@@ -110,13 +112,7 @@ class AdversarialReward:
             for start in range(0, len(order), size):
                 mine = learner.take(order[start : start + size])
                 theirs = self.demos.take(self.rng.integers(0, len(self.demos), len(mine)))
-                logits = []
-                for side in (theirs, mine):
-                    x, a, x_next, terminal = _tensors(side)
-                    logits.append(
-                        self.discriminator.logits(x, a, x_next, terminal, log_pi(self.policy, x, a))
-                    )
-                loss = discriminator_loss(*logits)
+                loss = discriminator_loss(self.logits(theirs), self.logits(mine))
                 self.optimiser.zero_grad()
                 loss.backward()
                 self.optimiser.step()
@@ -127,7 +123,11 @@ class AdversarialReward:
         return {k: v.detach().numpy().copy() for k, v in self.discriminator.state_dict().items()}
 
     def load_state(self, arrays: dict[str, np.ndarray]) -> None:
-        self.discriminator.load_state_dict({k: torch.as_tensor(v) for k, v in arrays.items()})
+        _load_weights(self.discriminator, arrays)
+
+
+def _load_weights(discriminator: torch.nn.Module, arrays: dict[str, np.ndarray]) -> None:
+    discriminator.load_state_dict({k: torch.as_tensor(v) for k, v in arrays.items()})
 
 
 def save_discriminator(run: RunDir, reward: AdversarialReward) -> None:

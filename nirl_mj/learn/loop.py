@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from nirl_mj.data.outcomes import outcome_rates
-from nirl_mj.data.trajectory import Trajectory, stack_pairs
+from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, stack_pairs
 from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
@@ -123,7 +123,7 @@ class Transitions:
             next_action = np.append(t.actions[1:], -1).astype(int)
             terminal = np.zeros(n, bool)
             value = np.zeros(n)
-            if t.outcome in ("collision", "physics_error", "target"):
+            if t.outcome in TERMINAL_OUTCOMES:
                 terminal[-1] = True
                 value[-1] = arrival_value if t.outcome == "target" else 0.0
             target = np.asarray(t.task["arena"]["target"], dtype=np.float64)
