@@ -65,7 +65,9 @@ def main() -> None:
         output = proc.stdout.read()
     if proc.returncode != 0:
         sys.exit(f"nirl-mj run failed ({proc.returncode}):\n{output}")
-    table = next((line for line in output.splitlines() if line.startswith("| NIRL")), "")
+    rows = [line for line in output.splitlines() if line.startswith("|")]
+    print("\n".join(rows))  # the job's whole table, for the README's figures
+    table = next((line for line in rows if line.startswith("| NIRL")), "")
     body = (
         f"`nirl-mj run {' '.join(args.extra)}` (default task, all cores), from an empty directory: "
         f"**{int(wall // 60)}:{int(wall % 60):02d} wall** ({wall:.0f} s), "

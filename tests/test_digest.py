@@ -21,6 +21,9 @@ variant's checkpoint, policy, metrics, reward and evaluation stayed bit-identica
 Re-pinned on 2026-11-25 when AL and RE took the per-state reading by default (issue 16): meant
 to change results; with ``al_expectations`` and ``re_expectations`` set to "trajectory" the new
 code gives the previous digest (9725b24...) bit for bit.
+Re-pinned the same day when NIRL's default margin took the learner's policies as its alternatives
+(``matching = "policy"``, issue 14): meant to change results; with ``matching = "occupancy"`` as the
+default the new code gives the previous digest (88f9b24...) bit for bit.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ TINY_LEARNER = ["episodes=3", "trajectories_per_episode=2", "validation_arenas=2
                 "replay_episodes=2"]  # fmt: skip
 METHODS = {"default": [], "paper": ["--variant", "paper"], "al": ["--config", "method=\"al\""],
            "re": ["--config", "method=\"re\""], "scirl": ["--config", "method=\"scirl\""]}  # fmt: skip
-PINNED = "88f9b24c09c78d5d4d5859e7b12ed2de46bacc17c867841e952ba58c704a1bfd"
+PINNED = "c7a37a4dd0eda62949466ca0199e8dbed3f3108c829ef8d9db71dd3cd746037d"
 
 
 def _arrays_digest(h, path: Path) -> None:

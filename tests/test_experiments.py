@@ -54,8 +54,8 @@ methods = ["NIRL", "rule"]
 obstacles = [3]
 speeds = [1.0, 2.0]
 """
-TABLE1_ROWS = ["NIRL", "NIRL-paper", "AL", "RE", "SCIRL", "AL-traj", "RE-traj", "GAIL", "AIRL", "DAgger",
-               "BC", "PPO-reward", "forward", "rule"]  # fmt: skip
+TABLE1_ROWS = ["NIRL", "NIRL-paper", "NIRL-classifier", "AL", "RE", "SCIRL", "AL-traj", "RE-traj", "GAIL",
+               "AIRL", "DAgger", "BC", "PPO-reward", "forward", "rule"]  # fmt: skip
 
 
 def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
@@ -74,8 +74,9 @@ def test_shipped_experiments_load_full_and_quick():
     assert [m.name for m in table1.methods] == TABLE1_ROWS
     assert (table1.task.arena.static_obstacles, table1.task.control.speed) == (20, 2.0)
     paper = {name: tuple(row[k] for k in ("avg", "best", "worst")) for name, row in table1.paper.items()}
-    assert paper == {"NIRL": (83, 94, 69), "NIRL-paper": (83, 94, 69), "AL": (66, 82, 43), "RE": (78, 87, 61),
-                     "AL-traj": (66, 82, 43), "RE-traj": (78, 87, 61), "SCIRL": (79, 88, 60)}  # fmt: skip
+    assert paper == {"NIRL": (83, 94, 69), "NIRL-paper": (83, 94, 69), "NIRL-classifier": (83, 94, 69),
+                     "AL": (66, 82, 43), "RE": (78, 87, 61), "AL-traj": (66, 82, 43), "RE-traj": (78, 87, 61),
+                     "SCIRL": (79, 88, 60)}  # fmt: skip
     assert {m.name: m.steps for m in load_experiment("table1", quick=True).methods if m.kind == "rl"} == {
         "GAIL": 2048, "AIRL": 2048, "PPO-reward": 2048}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too

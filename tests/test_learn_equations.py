@@ -326,6 +326,43 @@ def test_block_objective_equals_the_general_one():
     np.testing.assert_allclose(t2, t1, rtol=1e-8, atol=1e-12)
 
 
+def test_policy_objective_by_hand():
+    """eq. 13 with the learner's policies as the alternatives: one state, two actions, B = 1.
+
+    f(s, a) = e_a; the expert takes action 0, l = 0.1 for action 1; theta = (0.5, -0.5), so the
+    loss-augmented values are (0.5, -0.4). Policy (0.5, 0.5) scores 0.05, policy (0.9, 0.1)
+    scores 0.41: the second is the alternative. J = 0.41 - theta . f(s, 0) = -0.09, and the
+    subgradient is (0.9, 0.1) - (1, 0) = (-0.1, 0.1)."""
+    from nirl_mj.learn.mmp import mmp_objective_policies
+
+    policies = np.array([[[0.5, 0.5]], [[0.9, 0.1]]])
+    value, grad = mmp_objective_policies(
+        np.array([0.5, -0.5]), np.ones((1, 1)), np.array([[-1.0, 0.0]]), np.array([[0.0, 0.1]]), policies, 0.0
+    )
+    assert value == pytest.approx(-0.09)
+    np.testing.assert_allclose(grad, [-0.1, 0.1])
+    # a policy that always takes the expert's action is no violation: J = 0, gradient 0
+    value, grad = mmp_objective_policies(
+        np.array([0.5, -0.5]), np.ones((1, 1)), np.array([[-1.0, 0.0]]), np.array([[0.0, 0.1]]),
+        np.array([[[1.0, 0.0]]]), 0.0,
+    )  # fmt: skip
+    assert value == pytest.approx(0.0) and np.allclose(grad, 0.0)
+
+
+def test_policy_objective_with_every_deterministic_policy_is_the_action_max():
+    """With one one-hot policy per action the policies' max is the actions' max (the default)."""
+    from nirl_mj.learn.mmp import mmp_objective_blocks, mmp_objective_policies
+
+    rng = np.random.default_rng(3)
+    blocks, offset, theta = rng.random((30, 4)), rng.random((30, 24)), rng.normal(size=24)
+    loss = np.full((30, 6), 0.1)
+    every_action = np.broadcast_to(np.eye(6)[:, None, :], (6, 30, 6))
+    v1, g1 = mmp_objective_blocks(theta, blocks, offset, loss, 0.01)
+    v2, g2 = mmp_objective_policies(theta, blocks, offset, loss, every_action, 0.01)
+    assert v2 == pytest.approx(v1, rel=1e-12)
+    np.testing.assert_allclose(g2, g1, rtol=1e-12)
+
+
 def test_minimise_mmp_keeps_best_iterate():
     # A too-large step overshoots; theta0 is already optimal and must be returned.
     theta0 = np.array([1.0, 0.0])

@@ -45,8 +45,10 @@ def test_same_seed_gives_identical_weights(tmp_path, demos, variant):
     assert not np.array_equal(weights(tmp_path / "a")[0], weights(tmp_path / "c")[0])
 
 
-def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos):
-    config = tiny_config()
+@pytest.mark.parametrize("matching", ["occupancy", "policy"])
+def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos, matching):
+    """Also for the policy matching, whose reward step keeps the learner's past policies."""
+    config = tiny_config(matching=matching)
     train(tmp_path / "whole", TINY, demos, config, seed=1)
 
     def interrupt(metrics):

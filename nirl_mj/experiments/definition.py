@@ -85,6 +85,9 @@ class MethodSpec:
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
     "NIRL-paper": MethodSpec("NIRL-paper", "irl", "paper", "nirl"),
+    # the default's margin until 2026-11-25: every action an alternative, a classifier of the expert's
+    # actions that never reads the learner's rollouts (docs/ALGORITHM.md)
+    "NIRL-classifier": MethodSpec("NIRL-classifier", "irl", "default", "nirl", {"matching": "occupancy"}),
     "AL": MethodSpec("AL", "irl", "default", "al"),  # per-state reading (learn/al.py)
     "RE": MethodSpec("RE", "irl", "default", "re"),  # per-state reading (learn/reirl.py)
     # the whole-trajectory reading of eq. 11 (the papers'; the default rows until 2026-11-25)

@@ -101,7 +101,11 @@ class LoopConfig:
 class MaxMarginConfig:
     """NIRL's reward step, maximum margin planning (eq. 11-13; ``learn/mmp.py``)."""
 
-    matching: str = "occupancy"  # "paper": eq. 11 expectations; "occupancy": per-pair sums
+    # "paper": eq. 11 expectations; "occupancy": per-pair sums, every action an alternative (a
+    # classifier of the expert's actions; the default until 2026-11-25, the NIRL-classifier row);
+    # "policy" (the default since 2026-11-25): per-pair sums, the alternatives in each demonstrated
+    # state the learner's policies so far, so mu^(i) enters (learn/mmp.py, docs/ALGORITHM.md)
+    matching: str = "policy"
     # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
     # discounted sum (its own behaviour); 0: the expert's own continuation,
     # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E) (akin to SCIRL's heuristic, which uses
@@ -113,7 +117,7 @@ class MaxMarginConfig:
     mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
 
     def __post_init__(self) -> None:
-        _choice("matching", self.matching, ("paper", "occupancy"))
+        _choice("matching", self.matching, ("paper", "occupancy", "policy"))
         _bounds(
             self,
             future_mix=(0.0, 1.0, "[]"),

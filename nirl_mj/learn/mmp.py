@@ -25,6 +25,7 @@ __all__ = [
     "minimise_mmp",
     "mmp_objective_blocks",
     "minimise_mmp_blocks",
+    "mmp_objective_policies",
     "structured_loss",
     "MaxMarginStep",
 ]
@@ -130,15 +131,55 @@ def mmp_objective_blocks(
     Equal to ``mmp_objective(theta, expert, learner, loss, lam)`` with
     ``learner[n, a] = f(s_n, a) + gamma mu(next_n)`` (a test checks it).
     """
+    values = _action_values(theta, blocks, loss)
+    chosen = np.zeros_like(values)
+    chosen[np.arange(len(values)), np.argmax(values, axis=1)] = 1.0  # lowest index on ties
+    return _blocks_objective(theta, blocks, offset, values, chosen, lam)
+
+
+def mmp_objective_policies(
+    theta: np.ndarray,
+    blocks: np.ndarray,
+    offset: np.ndarray,
+    loss: np.ndarray,
+    policies: np.ndarray,
+    lam: float,
+) -> tuple[float, np.ndarray]:
+    """:func:`mmp_objective_blocks` with eq. 13's max over the learner's policies instead of actions.
+
+    policies: (J, N, A), pi_j(a | s_n) of the J policies the learner has produced, in the
+    demonstrated states. In each state s_n the alternative to the expert's pair is the policy j
+    whose expected loss-augmented value sum_a pi_j(a | s_n) (theta^T f(s_n, a) + l(s_n, a)) is
+    highest (lowest j on ties). With one-hot rows for every action this is
+    :func:`mmp_objective_blocks` (a test checks it); with the learner's Boltzmann policies,
+    mu^(j) of eq. 12-13 enters, and a state where every policy so far takes the expert's action
+    costs nothing.
+    """
+    values = _action_values(theta, blocks, loss)
+    scores = np.einsum("jna,na->jn", policies, values)
+    chosen = policies[np.argmax(scores, axis=0), np.arange(len(values))]  # (N, A)
+    return _blocks_objective(theta, blocks, offset, values, chosen, lam)
+
+
+def _action_values(theta: np.ndarray, blocks: np.ndarray, loss: np.ndarray) -> np.ndarray:
+    """theta^T f(s_n, a) + l(s_n, a), (N, A), from the state blocks (N, B)."""
+    per_action = np.asarray(theta, dtype=np.float64).reshape(-1, blocks.shape[1])  # (A, B)
+    return blocks @ per_action.T + loss
+
+
+def _blocks_objective(
+    theta: np.ndarray,
+    blocks: np.ndarray,
+    offset: np.ndarray,
+    values: np.ndarray,
+    chosen: np.ndarray,
+    lam: float,
+) -> tuple[float, np.ndarray]:
+    """J and its subgradient when state n's alternative weighs its actions by chosen[n] (N, A)."""
     theta = np.asarray(theta, dtype=np.float64)
-    n, b = blocks.shape
-    per_action = theta.reshape(-1, b)  # (A, B)
-    scores = blocks @ per_action.T + loss  # theta^T f(s_n, a) + l(s_n, a), (N, A)
-    a_star = np.argmax(scores, axis=1)  # lowest index on ties
-    value = float(np.mean(scores[np.arange(n), a_star] + offset @ theta) + 0.5 * lam * (theta @ theta))
-    # subgradient: (1/N) sum_n f(s_n, a*_n) + mean(offset) + lambda_1 theta
-    chosen = np.zeros((n, per_action.shape[0]))
-    chosen[np.arange(n), a_star] = 1.0
+    n = len(values)
+    value = float(np.mean((chosen * values).sum(axis=1) + offset @ theta) + 0.5 * lam * (theta @ theta))
+    # subgradient: (1/N) sum_n sum_a chosen[n, a] f(s_n, a) + mean(offset) + lambda_1 theta
     grad = (chosen.T @ blocks).reshape(-1) / n + offset.mean(axis=0) + lam * theta
     return value, grad
 
@@ -192,11 +233,15 @@ def minimise_mmp_blocks(
     steps: int,
     step_size: float,
     decay: float = 0.0,
+    policies: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
-    """:func:`minimise_mmp` with the objective of :func:`mmp_objective_blocks` (same iterates)."""
-    return _projected_subgradient(
-        lambda theta: mmp_objective_blocks(theta, blocks, offset, loss, lam), theta0, steps, step_size, decay
-    )
+    """:func:`minimise_mmp` with the objective of :func:`mmp_objective_blocks` (same iterates), or of
+    :func:`mmp_objective_policies` when ``policies`` (J, N, A) is given."""
+    if policies is None:
+        objective = lambda theta: mmp_objective_blocks(theta, blocks, offset, loss, lam)  # noqa: E731
+    else:
+        objective = lambda theta: mmp_objective_policies(theta, blocks, offset, loss, policies, lam)  # noqa: E731
+    return _projected_subgradient(objective, theta0, steps, step_size, decay)
 
 
 def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:
@@ -213,7 +258,9 @@ class MaxMarginStep:
     ``matching`` chooses
     what the margin compares ("paper": eq. 11 expectations of whole trajectories;
     "occupancy": per-pair discounted sums with ``future_mix`` choosing what follows
-    a deviation), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.
+    a deviation, every action an alternative; "policy": as "occupancy", but the
+    alternatives in each demonstrated state are the learner's policies so far,
+    :func:`mmp_objective_policies`), ``margin_loss`` the loss l, ``mmp_*`` the optimiser.
     """
 
     def __init__(self, loop: LoopConfig, own: MaxMarginConfig, demos: Sequence) -> None:
@@ -232,6 +279,8 @@ class MaxMarginStep:
         demonstrated = pair_features(self.demo_phi, self.demo_actions, self.loop.reward_features)
         self.expert_next = (self.expert - demonstrated) / self.loop.gamma
         self.blocks = state_reward_features(self.demo_phi, self.loop.reward_features)  # (N, B)
+        # "policy" matching: pi_j(. | s_n) of every policy that drove the rollouts so far, (N, 6) each
+        self.policies: list[np.ndarray] = []
 
     def learner_future(self, trajectories: Sequence) -> np.ndarray:
         """What follows each demonstrated pair on the learner's side, mu(next), (N, D):
@@ -286,14 +335,29 @@ class MaxMarginStep:
                 theta, self.expert, learner, loss, self.own.mmp_lambda, self.own.mmp_steps, lr
             )
         else:  # the same objective, without building the (N, 6, D) array
+            policies = None
+            if self.own.matching == "policy":
+                if context is None:
+                    raise ValueError("NIRL's policy matching needs the rollouts' policy (RolloutContext)")
+                self.policies.append(context.action_probabilities(self.demo_phi))
+                policies = np.stack(self.policies)
             offset = self.loop.gamma * self.learner_future(trajectories) - self.expert
             theta, j_min = minimise_mmp_blocks(
-                theta, self.blocks, offset, loss, self.own.mmp_lambda, self.own.mmp_steps, lr
+                theta,
+                self.blocks,
+                offset,
+                loss,
+                self.own.mmp_lambda,
+                self.own.mmp_steps,
+                lr,
+                policies=policies,
             )
         return theta, -j_min
 
     def state(self) -> dict[str, np.ndarray]:
-        return {}
+        if not self.policies:
+            return {}
+        return {"policies": np.stack(self.policies)}
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
-        pass
+        self.policies = list(np.asarray(state["policies"], dtype=np.float64)) if "policies" in state else []
