@@ -1,0 +1,64 @@
+"""What AIRL's policy is paid per decision: the sign of its reward on its own and the expert's pairs.
+
+AIRL's policy reward is the discriminator's logit l = f(s, a, s') - ln pi(a | s), with
+f = g(s, a) + gamma h(s') - h(s) and h(s') = 0 after a terminal state (a collision or an arrival).
+If l is mostly negative on the learner's own pairs, a shorter episode earns more: ending it with a
+collision is rewarded (the termination bias of adversarial imitation with terminal states; Kostrikov
+et al. 2019). This script measures that on a trained AIRL run of a compare experiment.
+
+    python docs/scripts/airl_rewards.py OUT [RUN ...]   (OUT: the experiment's --out; default run 0)
+
+Prints, per run: the mean logit per decision on 20 of its own training-arena episodes (sampled
+actions, as trained) and on the experiment's demonstrations, the share of negative logits, and the
+outcomes of those episodes.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+
+from nirl_mj.data.dataset import load_dataset
+from nirl_mj.data.rundir import RunDir
+from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, load_discriminator
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.rl import load_rl_policy, scaled
+from nirl_mj.experiments.seeds import domain_seeds
+from nirl_mj.sim import spec as specs
+from nirl_mj.sim.task import make_env
+
+
+def logits_of(reward: AdversarialReward, trajectories) -> np.ndarray:
+    return reward.logits(expert_transitions(trajectories, scaled)).detach().numpy()
+
+
+def main(out: Path, runs: list[int]) -> None:
+    demos = load_dataset(out / "demos.npz")
+    for r in runs:
+        run_dir = out / "runs" / "AIRL" / str(r)
+        record = RunDir(run_dir).read_record()
+        policy, _ = load_rl_policy(run_dir, seed=r)
+        model = PPO.load(RunDir(run_dir).model_file(), device="cpu")
+        gamma = float(record["config"]["gamma"])
+        reward = AdversarialReward("airl", gamma, expert_transitions(demos, scaled), seed=0)
+        reward.discriminator = load_discriminator(run_dir, "airl", gamma)
+        reward.policy = model.policy
+        env = make_env(specs.from_dict(record["task"]))
+        metrics, episodes = evaluate(env, policy, domain_seeds("train", r, 20))
+        with torch.no_grad():
+            own, expert = logits_of(reward, episodes), logits_of(reward, demos)
+        lengths = [len(t) for t in episodes]
+        own_part = f"mean logit {own.mean():+.2f} per decision, {100 * (own < 0).mean():.0f} % negative"
+        success, collision = 100 * metrics["success_rate"], 100 * metrics["collision_rate"]
+        outcomes = f"success {success:.0f} %, collision {collision:.0f} %"
+        demo_part = f"mean logit {expert.mean():+.2f}, {100 * (expert < 0).mean():.0f} % negative"
+        print(f"run {r}: own pairs: {own_part}, {np.mean(lengths):.0f} decisions per episode, {outcomes} "
+              f"| demonstrations: {demo_part}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), [int(x) for x in sys.argv[2:]] or [0])
