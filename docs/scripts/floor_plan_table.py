@@ -120,7 +120,7 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
         low = [mean[i] - (min(v) if v else 0.0) for i, v in enumerate(values)]
         high = [(max(v) if v else 0.0) - mean[i] for i, v in enumerate(values)]
         ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, label=m, yerr=[low, high],
-               error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
+               color=plt.get_cmap("tab20")(k % 20), error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
     ax.set_xticks(x, FAMILIES)
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 105)
