@@ -32,6 +32,7 @@ import numpy as np
 
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.data.dataset import load_dataset
+from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.evaluation import metrics_of
 from nirl_mj.experiments.seeds import held_out_seeds
 from nirl_mj.sim import spec as specs
@@ -43,9 +44,9 @@ BUILT_HERE = ("BC", "DAgger", "rule", "forward", "sensor")
 
 
 def family_task(family: str) -> specs.TaskSpec:
-    if family == "random":  # Table I's test task
-        navigate = specs.load_task("navigate")
-        return specs.replace(navigate, arena={"static_obstacles": 20}, control={"speed": 2.0})
+    """``random``: Table I's test task (tasks/table1.toml); else tasks/structured.toml with that family."""
+    if family == "random":
+        return load_experiment("table1").test_task
     return specs.replace(specs.load_task("structured"), arena={"floor_plan": family})
 
 
@@ -71,7 +72,7 @@ def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
     if method == "DAgger":
         from nirl_mj.experiments.dagger import train_dagger
 
-        policy, arenas = train_dagger(family_task("random"), demos, run, "sensor")
+        policy, arenas = train_dagger(load_experiment("table1").task, demos, run, "sensor")
         return PolicyAgent(policy, method), seen | set(arenas)
     from nirl_mj.experts.policies import POLICIES
 
