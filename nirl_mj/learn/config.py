@@ -106,7 +106,7 @@ class MaxMarginConfig:
     # "policy" (the default since 2026-11-25): per-pair sums, the alternatives in each demonstrated
     # state the learner's policies so far, so mu^(i) enters (learn/mmp.py, docs/ALGORITHM.md)
     matching: str = "policy"
-    # occupancy only: what follows a deviation from the expert's pair. 1: the learner's mean
+    # occupancy and policy matchings: what follows a deviation from the expert's pair. 1: the learner's mean
     # discounted sum (its own behaviour); 0: the expert's own continuation,
     # mu(s, a) = f(s, a) + gamma mu_E(s', a'_E) (akin to SCIRL's heuristic, which uses
     # mu_E(s, a_E): docs/ALGORITHM.md); in between: a mixture.
