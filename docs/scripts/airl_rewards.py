@@ -24,7 +24,7 @@ from stable_baselines3 import PPO
 
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, load_discriminator
+from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, read_discriminator
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.rl import load_rl_policy, scaled
 from nirl_mj.experiments.seeds import domain_seeds
@@ -45,7 +45,7 @@ def main(out: Path, runs: list[int]) -> None:
         model = PPO.load(RunDir(run_dir).model_file(), device="cpu")
         gamma = float(record["config"]["gamma"])
         reward = AdversarialReward("airl", gamma, expert_transitions(demos, scaled), seed=0)
-        reward.discriminator = load_discriminator(run_dir, "airl", gamma)
+        reward.load_state(read_discriminator(RunDir(run_dir)))
         reward.policy = model.policy
         env = make_env(specs.from_dict(record["task"]))
         metrics, episodes = evaluate(env, policy, domain_seeds("train", r, 20))

@@ -146,9 +146,7 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
 def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
     """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .))."""
     discriminator = make_discriminator(kind, gamma)
-    discriminator.load_state_dict(
-        {k: torch.as_tensor(v) for k, v in read_discriminator(RunDir(run_dir)).items()}
-    )
+    _load_weights(discriminator, read_discriminator(RunDir(run_dir)))
     return discriminator
 
 

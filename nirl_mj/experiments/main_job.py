@@ -36,6 +36,7 @@ from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import Execution, RunJob, policy_of, prepare
 from nirl_mj.inspect.figures import paths_plot, results_table, training_plots
 from nirl_mj.inspect.recording import record_run
+from nirl_mj.learn.config import MATCHINGS
 from nirl_mj.learn.reward import RewardModel
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.task import make_env
@@ -50,13 +51,6 @@ ROWS = {
 }
 """Method name (cells, run directories) -> its row in the results and the report, in report order."""
 
-
-MARGIN_READINGS = {
-    "policy": "the learner's policies so far, docs/ALGORITHM.md",
-    "occupancy": "every action, a classifier of the expert's actions",
-    "paper": "eq. 11 expectations of whole trajectories",
-}
-"""How the report names NIRL's ``matching`` (``MaxMarginConfig``)."""
 
 START_ORDER = ("control-constant", "NIRL", "control-progress")
 """The cells that start first, longest first: every training and test episode of the constant-reward
@@ -221,7 +215,7 @@ def write_report(
     text = f"""# nirl-mj run: {task.name}
 
 {n_demos} demonstrations by the {expert} expert; NIRL ({variant} variant, the margin's alternatives:
-{MARGIN_READINGS.get(matching, matching)}), {record["iterations"]} iterations,
+{MATCHINGS.get(matching, matching)}), {record["iterations"]} iterations,
 selected policy: iteration {record["selected_iteration"]} (rule: {record["selection"]["rule"]}); seed
 {record["seed"]}. Evaluation: greedy policies on {next(iter(results.values()))["tests"]} held-out arenas of
 `{task.name}` ({task.robot.drive} drive), none of which was seen in demonstrations, training or validation.

@@ -29,6 +29,12 @@ METHODS = ("nirl", "al", "re", "scirl")
 """The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
 REWARD_SOURCES = ("learned", "progress", "constant")
 EXPECTATIONS = ("state", "trajectory", "suffix")
+MATCHINGS = {
+    "paper": "eq. 11 expectations of whole trajectories",
+    "occupancy": "every action, a classifier of the expert's actions",
+    "policy": "the learner's policies so far, docs/ALGORITHM.md",
+}
+"""NIRL's margin readings (``MaxMarginConfig.matching``), each with what its alternatives are."""
 
 
 @dataclass(frozen=True)
@@ -117,7 +123,7 @@ class MaxMarginConfig:
     mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
 
     def __post_init__(self) -> None:
-        _choice("matching", self.matching, ("paper", "occupancy", "policy"))
+        _choice("matching", self.matching, tuple(MATCHINGS))
         _bounds(
             self,
             future_mix=(0.0, 1.0, "[]"),
