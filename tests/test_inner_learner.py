@@ -144,3 +144,29 @@ def test_bearing_inputs_put_the_sectors_centre_as_cos_and_sin_in_vs_place():
     np.testing.assert_allclose(NetworkInputs(scaled=True)(phi)[0, 7], 5 / 9)  # the default code: V/9
     learner = loop(input_bearing=True)
     assert network.get_weights(learner.net)["W1"].shape == (32, 18)
+
+
+def test_network_agent_remembers_each_states_choice_without_changing_a_draw():
+    """The agent computes each phi's Boltzmann CDF once per episode; its draws are those of
+    sample_action on freshly computed values, from the same generator (repeated states included)."""
+    from types import SimpleNamespace
+
+    from nirl_mj.learn import network
+    from nirl_mj.learn.inputs import NetworkInputs
+    from nirl_mj.learn.loop import NetworkAgent
+
+    net, inputs = network.QNetwork(16, 10, 6, seed=3), NetworkInputs()
+    states = np.random.default_rng(1).integers(0, 8, size=(4, 16)).astype(np.float32)
+    visits = [states[k] for k in (0, 1, 0, 2, 0, 1, 3, 3, 0)]
+    agent = NetworkAgent(net, inputs, 4.0, np.random.default_rng(7))
+    agent.reset(None, None)
+    drawn = [agent.act(SimpleNamespace(observation={"features": phi})) for phi in visits]
+    rng = np.random.default_rng(7)
+    fresh = [network.sample_action(network.q_values(net, inputs(phi[None]))[0], 4.0, rng) for phi in visits]
+    assert drawn == fresh
+    assert len(agent._choices) == 4
+    greedy = NetworkAgent(net, inputs, None, np.random.default_rng(7))
+    greedy.reset(None, None)
+    assert [greedy.act(SimpleNamespace(observation={"features": phi})) for phi in visits] == [
+        int(network.greedy_actions(network.q_values(net, inputs(phi[None])))[0]) for phi in visits
+    ]

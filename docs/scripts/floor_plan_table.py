@@ -14,7 +14,10 @@ privileged range rays) drives the same arenas. Methods and where their runs come
 - ``rule``, ``forward`` and ``sensor`` (the expert): no training.
 
     python docs/scripts/floor_plan_table.py --demos OUT/demos.npz --out DIR [--runs 5] [--tests 10]
-        [--workers 2] [NAME=RUNS_DIR ...]
+        [--workers 2] [--guide target|memory] [NAME=RUNS_DIR ...]
+
+``--guide memory`` tests every method with ``sensing.guide = "memory"`` (phi's sector V points at
+the robot's memory's escape waypoint while it is stuck; the expert drives the same either way).
 
 Writes DIR/families.json (every cell), families.csv, families.md and families.png (bars: the
 average over runs, whiskers from the worst to the best run). A cell is one (method, run) and
@@ -43,11 +46,13 @@ FAMILIES = ("random", "corridors", "pockets", "clusters", "blocks", "rooms", "sl
 BUILT_HERE = ("BC", "DAgger", "rule", "forward", "sensor")
 
 
-def family_task(family: str) -> specs.TaskSpec:
-    """``random``: Table I's test task (tasks/table1.toml); else tasks/structured.toml with that family."""
+def family_task(family: str, guide: str = "target") -> specs.TaskSpec:
+    """``random``: Table I's test task (tasks/table1.toml); else tasks/structured.toml with that
+    family; ``guide`` is the tasks' ``sensing.guide`` (what phi's sector V points at)."""
     if family == "random":
-        return load_experiment("table1").test_task
-    return specs.replace(specs.load_task("structured"), arena={"floor_plan": family})
+        return specs.replace(load_experiment("table1").test_task, sensing={"guide": guide})
+    structured = specs.load_task("structured")
+    return specs.replace(structured, arena={"floor_plan": family}, sensing={"guide": guide})
 
 
 def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
@@ -81,14 +86,14 @@ def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
 
 def cell(args: tuple) -> dict:
     """One (method, run): its success on every family."""
-    method, run, runs_dir, demos_path, tests = args
+    method, run, runs_dir, demos_path, tests, guide = args
     agent, seen = agent_for(method, run, runs_dir, demos_path)
     seeds = held_out_seeds(run, tests, set())
     if seen & set(seeds):  # the test domain is disjoint by construction; checked anyway
         raise RuntimeError(f"{method} run {run}: test arenas seen in training: {sorted(seen & set(seeds))}")
     out = {"method": method, "run": run, "seeds": seeds}
     for family in FAMILIES:
-        env = make_env(family_task(family))
+        env = make_env(family_task(family, guide))
         out[family] = metrics_of([run_episode(env, agent, s) for s in seeds])
     return out
 
@@ -142,6 +147,8 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--tests", type=int, default=10, help="arenas per family and run")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--guide", choices=("target", "memory"), default="target",
+                        help="the test tasks' sensing.guide (default: target, the paper's phi)")  # fmt: skip
     parser.add_argument("--methods", default=",".join(BUILT_HERE), help="of: " + ",".join(BUILT_HERE))
     parser.add_argument("trained", nargs="*", help="NAME=RUNS_DIR")
     args = parser.parse_args()
@@ -158,11 +165,15 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     store = args.out / "families.json"
     done = json.loads(store.read_text()) if store.is_file() else {"tests": args.tests, "cells": []}
-    if done["tests"] != args.tests:
-        parser.error(f"{store} holds cells of --tests {done['tests']}; use another --out")
+    done.setdefault("guide", "target")  # files written before --guide existed
+    if not done["cells"]:
+        done["guide"] = args.guide
+    if (done["tests"], done["guide"]) != (args.tests, args.guide):
+        held = f"--tests {done['tests']} --guide {done['guide']}"
+        parser.error(f"{store} holds cells of {held}; use another --out")
     finished = {(c["method"], c["run"]) for c in done["cells"]}
-    work = [(m, r, d, args.demos, args.tests) for r in range(args.runs) for m, d in sources.items()
-            if (m, r) not in finished]  # fmt: skip
+    work = [(m, r, d, args.demos, args.tests, args.guide)
+            for r in range(args.runs) for m, d in sources.items() if (m, r) not in finished]  # fmt: skip
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
         for k, result in enumerate(pool.imap_unordered(cell, work), 1):
             done["cells"].append(result)

@@ -17,27 +17,20 @@ used only to keep it safe and to get it out of pockets:
   the rear sensors leave room; otherwise it takes the arc with the most
   clearance to remembered hits).
 - **Memory veto (rare).** Every ray hit is written into a world-frame grid
-  (0.25 m cells); the free stretch of every ray clears the cells it passes,
-  so obstacles that moved away are forgotten. Before an arc is driven, the
+  (:class:`nirl_mj.sim.memory.RayMemory`, 0.25 m cells; the free stretch of every
+  ray clears the cells it passes). Before an arc is driven, the
   remembered hits along it and along the best follow-up arc (a two-decision
   look-ahead) must stay a hard margin away from the robot's outline; this
   catches what the coarse danger levels cannot show (an edge between two
   rays, an obstacle that has slipped behind the rear sensors). A vetoed arc
   gives way to the rule's next choice.
 - **Escape (rare).** The rule has no memory, so it can circle in a pocket or
-  dither in front of a wide obstacle. When the distance to the target has not
-  improved by 0.5 m for ``stuck_steps`` decisions, it plans on its memory
-  (Dijkstra on 1 m cells in a 41 m x 41 m window around the robot, cells near
-  remembered hits expensive, the straight-line distance to the target as the
-  cost beyond the window) and steers for a point a few metres down that path,
-  judging arcs by their geometric clearance to remembered hits, until it is
-  1 m closer to the target than where it got stuck (the leaving rule of the
-  Bug algorithms, so every escape ends with progress). Every decision spent
-  in a cell makes planning through it dearer, so a plan that leads back into
-  the same trap loses to the alternatives. A path is followed without
-  replanning unless new obstacles were seen (at most every other decision),
-  the visit costs have grown for 5 decisions, or the robot strayed from it or
-  reached its end.
+  dither in front of a wide obstacle. When the memory says it is stuck (no 0.5 m
+  of progress for ``stuck_steps`` decisions), it steers for the memory's escape
+  bearing (a waypoint a few metres down a path planned on the remembered hits,
+  :meth:`nirl_mj.sim.memory.RayMemory.escape_bearing`), judging arcs by their
+  geometric clearance to remembered hits, until it is 1 m closer to the target
+  than where it got stuck (the leaving rule of the Bug algorithms).
 
 Cost (2 m/s, 100 m arenas): an ordinary decision is a few small numpy calls
 (~0.1 ms); a window plan costs ~1 ms and happens only while escaping.
@@ -50,12 +43,10 @@ import math
 
 import dm_env
 import numpy as np
-from scipy import ndimage, sparse
-from scipy.sparse import csgraph
 
 from nirl_mj.data import features
 from nirl_mj.sim import drive
-from nirl_mj.sim.sensing import ray_angles
+from nirl_mj.sim.memory import CELL, RayMemory
 
 __all__ = ["SensorExpert"]
 
@@ -64,30 +55,14 @@ _BACKWARD = 5
 _N_FORWARD = 5  # actions 0..4 drive forward along an arc
 _TURNS_DEG = np.array([0.0, 30.0, 60.0, -30.0, -60.0])
 
-_CELL = 0.25  # memory grid cell side, metres
-_COARSE = 4  # memory cells per planning cell side (1 m planning cells)
-_PLAN_CELL = _CELL * _COARSE  # planning cell side, metres
-_PAD = 30.0  # memory grid margin around start and target, metres
-_WINDOW = 20  # planning window half-side, planning cells (the window is 41 x 41 m)
-_WAYPOINT = 6  # planning cells down the path to the escape waypoint (6-8.5 m)
 # Distance from a cell centre to any point of its cell, metres: a remembered
 # hit may lie this much closer than its cell centre.
-_CELL_SLACK = _CELL * math.sqrt(0.5)
+_CELL_SLACK = CELL * math.sqrt(0.5)
 
 # Samples along one decision's arc (fractions of the decision period) and
 # along the follow-up arc.
 _FIRST_SAMPLES = (10, 20, 30, 40, 50)
 _SECOND_SAMPLES = (17, 34, 50)
-
-# Planning-grid costs per metre: a cell holding a remembered hit, its
-# neighbours, free or unknown cells.
-_COST_HIT = 1000.0
-_COST_NEAR = 20.0
-_COST_FREE = 1.0
-# Extra cost per decision already spent in a planning cell: a plan that led
-# into a trap gets more expensive every time, so repeated escapes go elsewhere.
-_COST_VISIT = 3.0
-_EIGHT = np.ones((3, 3), dtype=bool)
 
 # The rule on phi(s), as nirl_mj.experts.policies.rule_policy, in table form so that
 # one decision costs a handful of numpy calls. Directions (degrees) of the
@@ -159,34 +134,6 @@ def _look_ahead_table(decision_period: float) -> np.ndarray:
     return np.concatenate([first, second.reshape(_N_FORWARD, -1, 2)], axis=1)
 
 
-@functools.lru_cache(maxsize=8)
-def _lattice(ny: int, nx: int) -> tuple[sparse.csr_matrix, np.ndarray]:
-    """8-connected grid graph on (ny, nx) cells with edge lengths in cells, and the
-    destination cell of every stored edge (for per-cell costs)."""
-    idx = np.arange(ny * nx).reshape(ny, nx)
-    rows, cols, lengths = [], [], []
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        a = idx[max(0, -di) : ny - max(0, di), max(0, -dj) : nx - max(0, dj)].ravel()
-        b = idx[max(0, di) : ny - max(0, -di), max(0, dj) : nx - max(0, -dj)].ravel()
-        length = math.hypot(di, dj)
-        rows += [a, b]
-        cols += [b, a]
-        lengths += [np.full(a.size, length)] * 2
-    graph = sparse.csr_matrix(
-        (np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))), shape=(ny * nx, ny * nx)
-    )
-    graph.sort_indices()
-    return graph, graph.indices.copy()
-
-
-@functools.lru_cache(maxsize=8)
-def _inner(h: int, w: int) -> np.ndarray:
-    """(h, w): 0 on a grid's border cells, ``inf`` inside (added to rule the inside out)."""
-    inner = np.zeros((h, w))
-    inner[1:-1, 1:-1] = np.inf
-    return inner
-
-
 def _wrap_deg(angle: np.ndarray | float) -> np.ndarray | float:
     """Angle in degrees wrapped to [-180, 180)."""
     return (angle + 180.0) % 360.0 - 180.0
@@ -230,9 +177,8 @@ class SensorExpert:
         self._period = decision_period
         self._hard = hard_margin
         self._soft = soft_clearance
-        self._stuck_steps = stuck_steps
         self._look_ahead = _look_ahead_table(decision_period)
-        self._occ = np.zeros((1, 1), dtype=bool)
+        self._memory = RayMemory(stuck_steps)
 
     # -- episode -------------------------------------------------------------------------
 
@@ -243,33 +189,13 @@ class SensorExpert:
         """
         obs = timestep.observation
         pose = np.asarray(obs["pose"], dtype=np.float64)
-        target = np.asarray(obs["target"], dtype=np.float64)
         rays = np.asarray(obs["rays"], dtype=np.float64)
-        self._target = target.copy()
+        self._memory.reset(pose, np.asarray(obs["target"], dtype=np.float64), rays)
         self._k = rays.size // features.N_SENSORS
-        self._angles = ray_angles(self._k)
-        # The sensing range is not observed as such: readings are capped at it,
-        # so the largest reading seen is the range (or a little less).
-        self._range = float(rays.max())
-        self._ray_samples = np.arange(drive.BODY_RADIUS, self._range + drive.BODY_RADIUS, _CELL)
-        lo = np.minimum(pose[:2], target) - _PAD
-        hi = np.maximum(pose[:2], target) + _PAD
-        # Whole planning cells, so the coarse grid is an exact block reduction.
-        n = np.ceil((hi - lo) / _PLAN_CELL).astype(int) * _COARSE
-        self._origin = lo
-        self._occ = np.zeros((n[1], n[0]), dtype=bool)  # [row = y, column = x]
         self._step_length = self._speed * self._period if self._speed else 1.0
         self._fixed_step = self._speed is not None
         self._last_xy = pose[:2].copy()
         self._steps = 0
-        self._best = math.inf
-        self._last_progress = 0
-        self._escape = False
-        self._escape_best = math.inf
-        self._path: np.ndarray | None = None  # escape path, world metres (P, 2)
-        self._planned_at = -1
-        self._hits_since_plan = 0
-        self._visits = np.zeros((n[1] // _COARSE, n[0] // _COARSE))
         self._last_forward = 0
         self._tabu = -1
         self._tabu_until = -1
@@ -281,13 +207,9 @@ class SensorExpert:
         rays = np.asarray(obs["rays"], dtype=np.float64)
         xy, yaw = pose[:2], float(pose[2])
         self._observe_motion(xy)
-        self._remember(xy, yaw, rays)
-        self._visits[self._coarse_cell(xy)] += 1.0
-
-        to_target = self._target - xy
-        self._track_progress(math.hypot(to_target[0], to_target[1]))
-        if self._escape:
-            action = self._choose(xy, yaw, rays, self._escape_bearing(xy, yaw))
+        self._memory.update(xy, yaw, rays)
+        if self._memory.escaping:
+            action = self._choose(xy, yaw, rays, self._memory.escape_bearing(xy, yaw))
         else:
             action = self._follow_rule(xy, yaw, rays, np.asarray(obs["features"], dtype=np.float64))
         if action == _BACKWARD:
@@ -301,58 +223,12 @@ class SensorExpert:
         self._steps += 1
         return action
 
-    # -- memory --------------------------------------------------------------------------
-
     def _observe_motion(self, xy: np.ndarray) -> None:
         """Updates the travel per decision (m) from odometry when the speed is not given."""
         step = math.hypot(xy[0] - self._last_xy[0], xy[1] - self._last_xy[1])
         self._last_xy = xy.copy()
         if not self._fixed_step and step > self._step_length:
             self._step_length = step
-
-    def _flat_cells(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Flat indices into the memory grid of world points ``x``, ``y`` (m, same shape),
-        clipped to the grid (the grid reaches far beyond anything the robot can see)."""
-        ny, nx = self._occ.shape
-        j = np.clip(((x - self._origin[0]) * (1.0 / _CELL)).astype(np.int64), 0, nx - 1)
-        i = np.clip(((y - self._origin[1]) * (1.0 / _CELL)).astype(np.int64), 0, ny - 1)
-        return i * nx + j
-
-    def _remember(self, xy: np.ndarray, yaw: float, rays: np.ndarray) -> None:
-        """Clears the cells each ray saw through and marks the cells it hit.
-
-        ``rays`` (9 k,) clearances from the outline (m), capped at the range.
-        """
-        angle = self._angles + yaw
-        cos, sin = np.cos(angle), np.sin(angle)
-        reach = rays + drive.BODY_RADIUS  # from the robot's centre
-        flat = self._occ.reshape(-1)  # a view: writes go to the grid
-        # Free space: samples every cell side along each ray, stopping a cell
-        # and a half short of the hit so that a surface is not cleared by its
-        # own ray (clearing is what forgets obstacles that moved away).
-        free = self._ray_samples[None, :] < (reach - 1.5 * _CELL)[:, None]
-        x = xy[0] + np.multiply.outer(cos, self._ray_samples)[free]
-        y = xy[1] + np.multiply.outer(sin, self._ray_samples)[free]
-        flat[self._flat_cells(x, y)] = False
-        hit = rays < self._range - 1e-6
-        if hit.any():
-            cells = self._flat_cells(xy[0] + cos[hit] * reach[hit], xy[1] + sin[hit] * reach[hit])
-            self._hits_since_plan += int(np.count_nonzero(~flat[cells]))
-            flat[cells] = True
-
-    def _nearby_hits(self, xy: np.ndarray, radius: float) -> np.ndarray:
-        """Centres (N, 2) m of remembered hit cells within a square of half-side ``radius`` m."""
-        ny, nx = self._occ.shape
-        j0 = max(0, int((xy[0] - radius - self._origin[0]) / _CELL))
-        j1 = min(nx, int((xy[0] + radius - self._origin[0]) / _CELL) + 1)
-        i0 = max(0, int((xy[1] - radius - self._origin[1]) / _CELL))
-        i1 = min(ny, int((xy[1] + radius - self._origin[1]) / _CELL) + 1)
-        if j0 >= j1 or i0 >= i1:
-            return np.empty((0, 2))
-        i, j = np.nonzero(self._occ[i0:i1, j0:j1])
-        return np.stack(
-            [self._origin[0] + (j + j0 + 0.5) * _CELL, self._origin[1] + (i + i0 + 0.5) * _CELL], axis=1
-        )
 
     # -- ordinary decisions: the rule on phi(s) -------------------------------------------
 
@@ -374,93 +250,6 @@ class SensorExpert:
         # roomiest way out (it may still back off).
         return self._choose(xy, yaw, rays, None)
 
-    # -- escape --------------------------------------------------------------------------
-
-    def _track_progress(self, distance: float) -> None:
-        """Switches to escape after ``stuck_steps`` decisions without 0.5 m of progress,
-        back once 1 m closer to the target than where it got stuck."""
-        if distance < self._best - 0.5:
-            self._best = distance
-            self._last_progress = self._steps
-        if self._escape:
-            if distance < self._escape_best - 1.0:
-                self._escape = False
-                self._best = distance
-                self._last_progress = self._steps
-        elif self._steps - self._last_progress >= self._stuck_steps:
-            self._escape = True
-            self._escape_best = self._best
-            self._path = None
-
-    def _plan(self, xy: np.ndarray) -> None:
-        """Cheapest path (1 m cells, world metres) from the robot to the cell of a window
-        around it that minimises path cost + straight-line distance to the target."""
-        ny, nx = self._visits.shape
-        ci, cj = self._coarse_cell(xy)
-        i0, i1 = max(0, ci - _WINDOW), min(ny, ci + _WINDOW + 1)
-        j0, j1 = max(0, cj - _WINDOW), min(nx, cj + _WINDOW + 1)
-        h, w = i1 - i0, j1 - j0
-        block = self._occ[i0 * _COARSE : i1 * _COARSE, j0 * _COARSE : j1 * _COARSE]
-        hit = block.reshape(h, _COARSE, w, _COARSE).any(axis=(1, 3))
-        near = ndimage.binary_dilation(hit, structure=_EIGHT)
-        cost = (
-            np.where(hit, _COST_HIT, np.where(near, _COST_NEAR, _COST_FREE))
-            + _COST_VISIT * self._visits[i0:i1, j0:j1]
-        ).ravel()
-        graph, dest = _lattice(h, w)
-        # An edge costs what entering its destination cell costs.
-        weighted = sparse.csr_matrix(
-            (graph.data * cost[dest], graph.indices, graph.indptr), shape=graph.shape
-        )
-        start = (ci - i0) * w + (cj - j0)
-        dist, pred = csgraph.dijkstra(weighted, directed=True, indices=start, return_predecessors=True)
-        # Beyond the window the way to the target is unknown: count it as free
-        # space in a straight line (cells, like the path costs).
-        cx = self._origin[0] + (np.arange(j0, j1) + 0.5) * _PLAN_CELL
-        cy = self._origin[1] + (np.arange(i0, i1) + 0.5) * _PLAN_CELL
-        beyond = np.hypot(cx[None, :] - self._target[0], cy[:, None] - self._target[1]) / _PLAN_CELL
-        # A path ends at the target or leaves the window: with a consistent
-        # estimate beyond, any cell inside would score no better than staying.
-        total = dist.reshape(h, w) + _COST_FREE * beyond + _inner(h, w)
-        ti, tj = self._coarse_cell(self._target)
-        if i0 <= ti < i1 and j0 <= tj < j1:
-            total[ti - i0, tj - j0] = dist[(ti - i0) * w + (tj - j0)]
-        node = int(np.argmin(total))
-        cells = [node]
-        while cells[-1] != start and pred[cells[-1]] >= 0:
-            cells.append(int(pred[cells[-1]]))
-        cells = np.array(cells[::-1])
-        self._path = np.stack([cx[cells % w], cy[cells // w]], axis=1)
-        self._planned_at = self._steps
-        self._hits_since_plan = 0
-
-    def _coarse_cell(self, point: np.ndarray) -> tuple[int, int]:
-        """Planning cell (row, column) of a world point (m), clipped to the grid."""
-        ny, nx = self._visits.shape
-        i = min(max(int((point[1] - self._origin[1]) // _PLAN_CELL), 0), ny - 1)
-        j = min(max(int((point[0] - self._origin[0]) // _PLAN_CELL), 0), nx - 1)
-        return i, j
-
-    def _escape_bearing(self, xy: np.ndarray, yaw: float) -> float:
-        """Bearing (deg, from the front) of a waypoint ~6 m down the escape path."""
-        # Replan only when the path may be stale: new obstacles were seen (at
-        # most every other decision), the visit costs have grown for a few
-        # decisions, the robot has strayed from the path or come to its end.
-        since = self._steps - self._planned_at
-        replan = self._path is None or (self._hits_since_plan > 0 and since >= 2) or since >= 5
-        if not replan:
-            off = np.hypot(*(self._path - xy).T)
-            nearest = int(np.argmin(off))
-            replan = off[nearest] > 2.0 * _PLAN_CELL or nearest >= len(self._path) - 2
-        if replan:
-            self._plan(xy)
-            off = np.hypot(*(self._path - xy).T)
-            nearest = int(np.argmin(off))
-        wx, wy = self._path[min(nearest + _WAYPOINT, len(self._path) - 1)]
-        if abs(wx - xy[0]) + abs(wy - xy[1]) < 0.5 * _PLAN_CELL:
-            wx, wy = self._target
-        return math.degrees(math.atan2(wy - xy[1], wx - xy[0]) - yaw)
-
     # -- geometric choice (escapes, and when the rule is boxed in) ------------------------
 
     def _rear_clear(self, rays: np.ndarray) -> bool:
@@ -471,7 +260,7 @@ class SensorExpert:
         """Gap (5,) m between the robot's outline and the remembered hits along each
         forward arc and its best follow-up arc; ``None`` if no hit lies within
         ``radius`` m (square) of the robot."""
-        hits = self._nearby_hits(xy, radius)
+        hits = self._memory.nearby_hits(xy, radius)
         if hits.shape[0] == 0:
             return None
         c, s = math.cos(yaw), math.sin(yaw)

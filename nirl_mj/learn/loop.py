@@ -53,16 +53,27 @@ class NetworkAgent:
         self.kind = "nirl"
 
     def reset(self, env: Any, timestep: Any) -> None:
-        # The network does not change during an episode: read its weights once.
+        # The network does not change during an episode: read its weights once. phi(s) is
+        # discrete and repeats often within an episode, so each state's choice (the greedy
+        # action, or the Boltzmann CDF to draw from) is computed once per episode.
         self._weights = (self.net.W1.detach().numpy(), self.net.W2.detach().numpy())
+        self._choices: dict[bytes, int | np.ndarray] = {}
 
     def act(self, timestep: Any) -> int:
         """The action for a dm_env timestep (reads ``timestep.observation["features"]``, phi(s))."""
-        x = self.inputs(timestep.observation["features"][None])
-        q = network.q_values(self.net, x, self._weights)[0]
+        phi = timestep.observation["features"]
+        key = phi.tobytes()
+        choice = self._choices.get(key)
+        if choice is None:
+            q = network.q_values(self.net, self.inputs(phi[None]), self._weights)[0]
+            if self.eta is None:
+                choice = int(network.greedy_actions(q[None])[0])
+            else:
+                choice = network.boltzmann_cdf(q, self.eta)
+            self._choices[key] = choice
         if self.eta is None:
-            return int(network.greedy_actions(q[None])[0])
-        return network.sample_action(q, self.eta, self.rng)
+            return choice
+        return network.draw_action(choice, self.rng)
 
 
 def demonstrated_pairs(demos: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]:

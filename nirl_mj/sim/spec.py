@@ -117,10 +117,16 @@ class SensingSpec:
     ``range`` is measured from the robot's outline (metres). Clearance below
     ``danger7_clearance`` is danger 7; clearances between it and ``range`` map
     linearly onto levels 6..1; nothing within range is 0.
+
+    ``guide`` is what phi's sector V points at: ``"target"`` (the paper) or ``"memory"``: the
+    target, except while the robot's memory of its own rays says it is stuck, when V holds the
+    sector of that memory's escape waypoint (:class:`nirl_mj.sim.memory.RayMemory`, the sensor
+    expert's escape). A departure from the paper, for floor plans with dead ends.
     """
 
     range: float = field(default=5.0, metadata=_check(0.0, open_low=True))
     danger7_clearance: float = field(default=1.0, metadata=_check(0.0, open_low=True))
+    guide: str = field(default="target", metadata={**_choices("target", "memory"), **_OMIT_DEFAULT})
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from nirl_mj.sim.arena import NavigationArena
 from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist, max_yaw_rate
 from nirl_mj.sim.environment import Environment
 from nirl_mj.sim.layout import Layout, generate_layout
+from nirl_mj.sim.memory import RayMemory
 from nirl_mj.sim.robot import Robotino
 from nirl_mj.sim.sensing import Rangefinders, RangeSensors, Scan
 from nirl_mj.sim.spec import TaskSpec, load_task
@@ -99,6 +100,7 @@ class NavigationTask(composer.Task):
         self._phi = np.zeros(features.N_FEATURES, dtype=np.float32)
         self._danger = np.zeros(features.N_SENSORS, dtype=np.int8)
         self._progress = 0.0
+        self._memory = RayMemory() if spec.sensing.guide == "memory" else None
         self._observables = self._make_observables()
         # Called with ``physics`` after every command period (default 10 ms) of a
         # decision when set, e.g. to render video frames at a fixed rate of simulated
@@ -373,8 +375,24 @@ class NavigationTask(composer.Task):
         )
         sensing = self._spec.sensing
         self._danger = features.danger_levels(self._scan.ranges, sensing.range, sensing.danger7_clearance)
-        region = features.target_region(self._scan.bearing)
+        region = features.target_region(self._guide_bearing())
         self._phi = features.state_features(self._danger, self._scan.wall, region, self._scan.target_visible)
+
+    def _guide_bearing(self) -> float:
+        """Where phi's sector V points (radians from the front): the target's bearing, or with
+        ``sensing.guide = "memory"`` the memory's escape bearing while it says the robot is stuck.
+        The memory reads what the sensor expert reads (pose, rays capped at the range, target)."""
+        if self._memory is None:
+            return self._scan.bearing
+        width, height = self._spec.arena.size
+        pose = observations.arena_pose(self._pose, width, height)
+        rays = np.minimum(self._scan.rays, self._spec.sensing.range)
+        if self._steps == 0:
+            self._memory.reset(pose, np.asarray(self._spec.arena.target, dtype=np.float64), rays)
+        self._memory.update(pose[:2], float(pose[2]), rays)
+        if not self._memory.escaping:
+            return self._scan.bearing
+        return math.radians(self._memory.escape_bearing(pose[:2], float(pose[2])))
 
 
 def _wrap(angle: float) -> float:
