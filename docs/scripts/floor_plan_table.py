@@ -17,7 +17,9 @@ privileged range rays) drives the same arenas. Methods and where their runs come
         [--workers 2] [--guide target|memory] [NAME=RUNS_DIR ...]
 
 ``--guide memory`` tests every method with ``sensing.guide = "memory"`` (phi's sector V points at
-the robot's memory's escape waypoint while it is stuck; the expert drives the same either way).
+the robot's memory's escape waypoint while it is stuck; the expert drives the same either way), and
+trains DAgger with it. BC learns from ``--demos`` and trained runs come as they were trained: give
+demonstrations and runs recorded with the same guide (not checked here).
 
 Writes DIR/families.json (every cell), families.csv, families.md and families.png (bars: the
 average over runs, whiskers from the worst to the best run). A cell is one (method, run) and
@@ -55,7 +57,7 @@ def family_task(family: str, guide: str = "target") -> specs.TaskSpec:
     return specs.replace(structured, arena={"floor_plan": family}, sensing={"guide": guide})
 
 
-def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
+def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str, guide: str = "target"):
     """(an Agent for run_episode, the arena seeds its training saw)."""
     from nirl_mj.experts.policies import PolicyAgent
 
@@ -77,7 +79,8 @@ def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
     if method == "DAgger":
         from nirl_mj.experiments.dagger import train_dagger
 
-        policy, arenas = train_dagger(load_experiment("table1").task, demos, run, "sensor")
+        task = specs.replace(load_experiment("table1").task, sensing={"guide": guide})
+        policy, arenas = train_dagger(task, demos, run, "sensor")
         return PolicyAgent(policy, method), seen | set(arenas)
     from nirl_mj.experts.policies import POLICIES
 
@@ -87,7 +90,7 @@ def agent_for(method: str, run: int, runs_dir: str | None, demos_path: str):
 def cell(args: tuple) -> dict:
     """One (method, run): its success on every family."""
     method, run, runs_dir, demos_path, tests, guide = args
-    agent, seen = agent_for(method, run, runs_dir, demos_path)
+    agent, seen = agent_for(method, run, runs_dir, demos_path, guide)
     seeds = held_out_seeds(run, tests, set())
     if seen & set(seeds):  # the test domain is disjoint by construction; checked anyway
         raise RuntimeError(f"{method} run {run}: test arenas seen in training: {sorted(seen & set(seeds))}")

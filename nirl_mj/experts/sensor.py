@@ -46,7 +46,7 @@ import numpy as np
 
 from nirl_mj.data import features
 from nirl_mj.sim import drive
-from nirl_mj.sim.memory import CELL, RayMemory
+from nirl_mj.sim.memory import CELL, STUCK_STEPS, RayMemory
 
 __all__ = ["SensorExpert"]
 
@@ -171,7 +171,7 @@ class SensorExpert:
         decision_period: float = 0.5,
         hard_margin: float = 0.25,
         soft_clearance: float = 1.5,
-        stuck_steps: int = 10,
+        stuck_steps: int = STUCK_STEPS,
     ) -> None:
         self._speed = speed
         self._period = decision_period

@@ -34,9 +34,10 @@ from nirl_mj.data.features import N_SENSORS
 from nirl_mj.sim.drive import BODY_RADIUS
 from nirl_mj.sim.sensing import ray_angles
 
-__all__ = ["CELL", "RayMemory"]
+__all__ = ["CELL", "STUCK_STEPS", "RayMemory"]
 
 CELL = 0.25  # memory grid cell side, metres
+STUCK_STEPS = 10  # decisions without 0.5 m of progress before the robot counts as stuck
 _COARSE = 4  # memory cells per planning cell side (1 m planning cells)
 _PLAN_CELL = CELL * _COARSE  # planning cell side, metres
 _PAD = 30.0  # memory grid margin around start and target, metres
@@ -93,7 +94,7 @@ class RayMemory:
     :attr:`escaping` is true.
     """
 
-    def __init__(self, stuck_steps: int = 10) -> None:
+    def __init__(self, stuck_steps: int = STUCK_STEPS) -> None:
         self.stuck_steps = int(stuck_steps)
         self.occ = np.zeros((1, 1), dtype=bool)
 

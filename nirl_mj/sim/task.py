@@ -100,6 +100,8 @@ class NavigationTask(composer.Task):
         self._phi = np.zeros(features.N_FEATURES, dtype=np.float32)
         self._danger = np.zeros(features.N_SENSORS, dtype=np.int8)
         self._progress = 0.0
+        # The sensor expert's memory, with its default stuck_steps (sim.memory.STUCK_STEPS): V is then
+        # the sector that expert steers for (an expert built with another stuck_steps would drift apart).
         self._memory = RayMemory() if spec.sensing.guide == "memory" else None
         self._observables = self._make_observables()
         # Called with ``physics`` after every command period (default 10 ms) of a
