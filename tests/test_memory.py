@@ -120,3 +120,11 @@ def test_the_rule_on_phi_leaves_a_pocket_only_with_the_memory_guide():
     guided = run_episode(nirl_mj.make_env(_pocket_task("memory"), seed=0), rule, 0)
     assert stuck.outcome != "target"
     assert guided.outcome == "target"
+
+
+def test_the_main_jobs_report_names_the_memory_guide():
+    from nirl_mj.experiments.main_job import _guide_note
+
+    spec = task_spec.load_task("navigate")
+    assert _guide_note(spec) == ""
+    assert 'sensing.guide = "memory"' in _guide_note(task_spec.replace(spec, sensing={"guide": "memory"}))

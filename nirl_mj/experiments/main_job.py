@@ -203,6 +203,16 @@ def follow_metrics(runs: list[RunDir], on_metrics: Callable[[dict], None] | None
         poll()
 
 
+def _guide_note(task: specs.TaskSpec) -> str:
+    """A sentence for the report when phi's sector V is not the paper's (``sensing.guide``)."""
+    if task.sensing.guide == "target":
+        return ""
+    return (
+        "\nphi's sector V reads the robot's memory: the target's sector, or while stuck its memory's escape "
+        'waypoint (`sensing.guide = "memory"`, a departure from the paper; docs/TASKS.md).'
+    )
+
+
 def write_report(
     out: Path, nirl: RunDir, experiment: Experiment, results: dict, paths: dict, n_demos: int
 ) -> Path:
@@ -212,13 +222,15 @@ def write_report(
     paths_plot(out / "paths.png", {k: paths[k] for k in ("NIRL", "rule on phi(s)", "always forward")})
     record = nirl.read_record()
     matching = record["config"].get("matching", "occupancy")
+    guide = _guide_note(task)
     text = f"""# nirl-mj run: {task.name}
 
 {n_demos} demonstrations by the {expert} expert; NIRL ({variant} variant, the margin's alternatives:
 {MATCHINGS.get(matching, matching)}), {record["iterations"]} iterations,
 selected policy: iteration {record["selected_iteration"]} (rule: {record["selection"]["rule"]}); seed
 {record["seed"]}. Evaluation: greedy policies on {next(iter(results.values()))["tests"]} held-out arenas of
-`{task.name}` ({task.robot.drive} drive), none of which was seen in demonstrations, training or validation.
+`{task.name}` ({task.robot.drive} drive), none of which was seen in demonstrations, training or
+validation.{guide}
 
 {results_table(results)}
 
