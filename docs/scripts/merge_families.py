@@ -3,9 +3,10 @@
 Each item is ``LABEL=DIR:METHOD``: the cells of METHOD in DIR/families.json, shown as LABEL.
 The outputs must hold the same arenas (the same ``--tests``); this is checked.
 
-    python docs/scripts/merge_families.py --out DIR LABEL=DIR:METHOD [...]
+    python docs/scripts/merge_families.py --out DIR [--force] LABEL=DIR:METHOD [...]
 
-Writes DIR/families.md, .csv, .png (as floor_plan_table.py) and DIR/families.json (the cells).
+Writes DIR/families.md, .csv, .png (as floor_plan_table.py) and DIR/families.json (the cells); an
+earlier merge in DIR is replaced only with ``--force``.
 """
 
 from __future__ import annotations
@@ -22,8 +23,11 @@ from nirl_mj.data.atomic import write_text
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--force", action="store_true", help="replace an earlier merge in --out")
     parser.add_argument("items", nargs="+", help="LABEL=DIR:METHOD")
     args = parser.parse_args()
+    if (args.out / "families.json").exists() and not args.force:
+        parser.error(f"{args.out} already holds a merge (families.json); pass --force to replace it")
     cells, labels, arenas = [], [], set()
     for item in args.items:
         label, _, source = item.partition("=")
