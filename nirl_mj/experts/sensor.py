@@ -195,7 +195,6 @@ class SensorExpert:
         self._step_length = self._speed * self._period if self._speed else 1.0
         self._fixed_step = self._speed is not None
         self._last_xy = pose[:2].copy()
-        self._steps = 0
         self._last_forward = 0
         self._tabu = -1
         self._tabu_until = -1
@@ -217,10 +216,9 @@ class SensorExpert:
             # keep off it for a few decisions, so the robot backs off far
             # enough to turn instead of driving straight back in.
             self._tabu = self._last_forward
-            self._tabu_until = self._steps + 4
+            self._tabu_until = self._memory.steps + 4
         else:
             self._last_forward = action
-        self._steps += 1
         return action
 
     def _observe_motion(self, xy: np.ndarray) -> None:
@@ -287,7 +285,7 @@ class SensorExpert:
         if gap is None:
             return int(np.argmin(deviation))
         safe = gap >= self._hard
-        if self._steps < self._tabu_until:
+        if self._memory.steps < self._tabu_until:  # the decision's index, from 0
             safe[self._tabu] = False
         if not safe.any():
             # Boxed in: back off if the rear sensors (S5, S6) leave room.
