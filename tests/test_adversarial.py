@@ -59,6 +59,36 @@ def test_airl_f_shaping_terminal_and_logit_by_hand():
         make_discriminator("wgan", 0.9)
 
 
+def test_gail_absorbing_state_is_one_learned_logit():
+    disc = GailDiscriminator(absorbing=True)
+    constant_heads(disc, net=[1.0] * 6)
+    with torch.no_grad():
+        disc.absorbing.fill_(math.log(3.0))
+    absorbing = torch.tensor([False, True])
+    logits = disc.logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
+    np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-6)
+    with pytest.raises(ValueError, match="without an absorbing state"):
+        GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
+
+
+def test_airl_absorbing_state_by_hand():
+    disc = AirlDiscriminator(gamma=0.5, absorbing=True)
+    constant_heads(disc, g=[1.0, 2.0, 0.0, 0.0, 0.0, 0.0], h=[4.0])
+    with torch.no_grad():
+        disc.absorbing.copy_(torch.tensor([0.5, 3.0]))  # g(s_a), h(s_a)
+    x = torch.zeros((3, 16))
+    actions, terminal = torch.tensor([0, 1, 0]), torch.tensor([False, True, True])
+    absorbing = torch.tensor([False, False, True])
+    # 1 + 0.5 * 4 - 4 = -1; into s_a: 2 + 0.5 * h(s_a) - 4 = -0.5; in s_a: 0.5 + (0.5 - 1) * 3 = -1
+    f = disc.f(x, actions, x, terminal, absorbing)
+    np.testing.assert_allclose(f.detach().numpy(), [-1.0, -0.5, -1.0], rtol=1e-6)
+    # s_a offers one action: ln pi = 0 there, whatever the policy's own ln pi in the zero input
+    log_pi = torch.tensor([math.log(0.5), math.log(0.25), math.log(0.1)])
+    logits = disc.logits(x, actions, x, terminal, log_pi, absorbing)
+    expected = [-1 + math.log(2), -0.5 + math.log(4), -1.0]
+    np.testing.assert_allclose(logits.detach().numpy(), expected, rtol=1e-6)
+
+
 class Corridor:
     """A gymnasium env: 16 zeros then the step count in x[0]; ends (terminated) after 2 steps,
     with a task reward of 100 that the wrapper must drop."""
@@ -98,6 +128,11 @@ def test_expert_transitions_end_terminal_only_in_terminal_states():
     np.testing.assert_allclose(t.x_next[0], np.arange(16, 32) / 100)  # s' is the next state, scaled
     with pytest.raises(ValueError, match="nothing to imitate"):
         expert_transitions([demo("timeout", 0)], lambda phi: phi)
+    # with an absorbing state, one pair (s_a, ., s_a) after each terminal demonstration
+    demos = [demo("target"), demo("timeout"), demo("collision")]
+    t = expert_transitions(demos, lambda phi: phi, absorbing=True)
+    np.testing.assert_array_equal(t.absorbing, [False, False, True, False, False, False, False, True])
+    np.testing.assert_array_equal(t.terminal, [False, True, True, False, False, False, True, True])
 
 
 def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
@@ -106,7 +141,7 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
 
     from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
 
-    demos = Transitions(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail", 0.99, demos, seed=0)
     constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 everywhere
     venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
@@ -125,7 +160,32 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
     assert len(venv.take()) == 0  # taken once
 
 
-@pytest.mark.parametrize("algo", ["gail", "airl"])
+def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+
+    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    reward = AdversarialReward("gail-absorbing", 0.75, demos, seed=0)
+    constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 in every real state
+    with torch.no_grad():
+        reward.discriminator.absorbing.fill_(math.log(3.0))  # in s_a: -ln(1 - 3/4) = ln 4
+    venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
+    venv.reset()
+    rewards = []
+    for action in (3, 4):
+        venv.step_async(np.array([action]))
+        rewards.append(float(venv.step_wait()[1][0]))
+    # the terminal step: its own ln 2, then ln 4 at every later step in s_a: 0.75 / 0.25 * ln 4
+    np.testing.assert_allclose(rewards, [math.log(2), math.log(2) + 3 * math.log(4)], rtol=1e-6)
+    kept = venv.take()
+    np.testing.assert_array_equal(kept.absorbing, [False, False, True])  # s_a joins the learner's pairs
+    with pytest.raises(ValueError, match="accepted: gail, airl, gail-absorbing"):
+        AdversarialReward("airl-lite", 0.75, demos, seed=0)
+
+
+@pytest.mark.parametrize("algo", ["gail", "airl", "airl-absorbing"])
 def test_a_short_adversarial_run_beats_the_uniform_random_policy(tmp_path, algo):
     pytest.importorskip("stable_baselines3")
     from nirl_mj.data.dataset import save_dataset
@@ -147,10 +207,12 @@ def test_a_short_adversarial_run_beats_the_uniform_random_policy(tmp_path, algo)
     rng = np.random.default_rng(0)
     _, random = evaluate(make_env(task), lambda phi: int(rng.integers(6)), tests)
     assert progress(learned) > progress(random) + 0.25
-    if algo == "airl":  # the learned reward g(s, .) reads back, and a subject shows it like r_theta
+    if algo.startswith("airl"):  # the learned reward g(s, .) reads back, and a subject shows it like r_theta
         from nirl_mj.experiments.subjects import run_subject
 
-        g = load_discriminator(tmp_path / "run", "airl", 0.99).reward(np.zeros((2, 16)))
+        disc = load_discriminator(tmp_path / "run", "airl", 0.99)
+        assert hasattr(disc, "absorbing") == algo.endswith("absorbing")  # read from the saved weights
+        g = disc.reward(np.zeros((2, 16)))
         reward = run_subject(tmp_path / "run").reward()
         phi = np.zeros((2, 16), np.float32)
         np.testing.assert_allclose(reward.rewards_all_actions(phi), g, rtol=1e-6)

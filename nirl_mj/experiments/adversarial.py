@@ -9,6 +9,11 @@ pairs drawn from the demonstrations (:class:`DiscriminatorTraining`), then PPO u
 on the rollout. The observation is phi(s) scaled to [0, 1], as for the RL reference and the
 other rows; the demonstrations are the experiment's 30.
 
+``gail-absorbing`` and ``airl-absorbing`` add the absorbing state of Kostrikov et al. (2019; see
+``nirl_mj.learn.adversarial``): every terminal episode, the expert's and the learner's, adds one pair
+(s_a, ., s_a) to the discriminator's data, and a terminal transition's reward gains the discounted
+stay in s_a, gamma / (1 - gamma) times the policy's reward there. A timeout is a truncation: no s_a.
+
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
 Needs the optional extra ``nirl-mj[gym]``.
@@ -16,6 +21,7 @@ Needs the optional extra ``nirl-mj[gym]``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -26,7 +32,7 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
-from nirl_mj.learn.adversarial import discriminator_loss, make_discriminator
+from nirl_mj.learn.adversarial import ABSORBING, discriminator_loss, make_discriminator
 
 DISCRIMINATOR_FILE = "discriminator.npz"
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
@@ -35,24 +41,43 @@ SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 
 @dataclass(frozen=True)
 class Transitions:
-    """Pairs (x (N, 16) scaled phi(s), a (N,), x' (N, 16), terminal (N,) bool)."""
+    """Pairs (x (N, 16) scaled phi(s), a (N,), x' (N, 16), terminal (N,) bool, absorbing (N,)
+    bool: the pair (s_a, ., s_a), whose x, a and x' are zeros and never read)."""
 
     x: np.ndarray
     actions: np.ndarray
     x_next: np.ndarray
     terminal: np.ndarray
+    absorbing: np.ndarray
 
     def __len__(self) -> int:
         return len(self.actions)
 
     def take(self, rows: np.ndarray) -> Transitions:
-        return Transitions(self.x[rows], self.actions[rows], self.x_next[rows], self.terminal[rows])
+        return Transitions(*(getattr(self, f.name)[rows] for f in dataclasses.fields(self)))
+
+    @staticmethod
+    def of(x, actions, x_next, terminal) -> Transitions:
+        """Pairs of real states: none absorbing."""
+        return Transitions(x, actions, x_next, terminal, np.zeros(len(actions), bool))
+
+    @staticmethod
+    def absorbing_pairs(count: int) -> Transitions:
+        """``count`` pairs (s_a, ., s_a)."""
+        zeros = np.zeros((count, 16), np.float32)
+        ones = np.ones(count, bool)
+        return Transitions(zeros, np.zeros(count, np.int64), zeros, ones, ones)
+
+    @staticmethod
+    def concat(parts: Sequence[Transitions]) -> Transitions:
+        fields = [f.name for f in dataclasses.fields(Transitions)]
+        return Transitions(*(np.concatenate([getattr(p, name) for p in parts]) for name in fields))
 
 
-def expert_transitions(demos: Sequence[Trajectory], scale) -> Transitions:
+def expert_transitions(demos: Sequence[Trajectory], scale, absorbing: bool = False) -> Transitions:
     """Every demonstrated (s, a, s'), terminal where the demonstration ended in a terminal state
     (arrival, collision or a physics error, as the environment and NIRL's loop end them; a timeout
-    is a truncation)."""
+    is a truncation). With ``absorbing``, each terminal demonstration adds one pair (s_a, ., s_a)."""
     parts = []
     for t in demos:
         n = len(t)
@@ -60,16 +85,30 @@ def expert_transitions(demos: Sequence[Trajectory], scale) -> Transitions:
             continue
         terminal = np.zeros(n, bool)
         terminal[-1] = t.outcome in TERMINAL_OUTCOMES
-        parts.append((scale(t.features[:-1]), np.asarray(t.actions), scale(t.features[1:]), terminal))
+        x, x_next = scale(t.features[:-1]), scale(t.features[1:])
+        parts.append(Transitions.of(x, np.asarray(t.actions), x_next, terminal))
+        if absorbing and terminal[-1]:
+            parts.append(Transitions.absorbing_pairs(1))
     if not parts:
         raise ValueError("the demonstrations hold no state-action pair: there is nothing to imitate")
-    return Transitions(*(np.concatenate(p) for p in zip(*parts, strict=True)))
+    return Transitions.concat(parts)
 
 
 def _tensors(t: Transitions) -> tuple[torch.Tensor, ...]:
     as_tensor = torch.as_tensor
     return (as_tensor(t.x, dtype=torch.float32), as_tensor(t.actions, dtype=torch.long),
-            as_tensor(t.x_next, dtype=torch.float32), as_tensor(t.terminal, dtype=torch.bool))  # fmt: skip
+            as_tensor(t.x_next, dtype=torch.float32), as_tensor(t.terminal, dtype=torch.bool),
+            as_tensor(t.absorbing, dtype=torch.bool))  # fmt: skip
+
+
+def discriminator_kind(algo: str) -> tuple[str, bool]:
+    """The discriminator of an adversarial ``algo`` and whether it has an absorbing state:
+    "airl-absorbing" -> ("airl", True)."""
+    kind, _, option = algo.partition("-")
+    if kind not in ("gail", "airl") or option not in ("", ABSORBING):
+        raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: gail, airl, "
+                         "gail-absorbing, airl-absorbing")  # fmt: skip
+    return kind, option == ABSORBING
 
 
 def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -82,10 +121,13 @@ def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
 
 
 class AdversarialReward:
-    """The discriminator, its optimiser and the expert's pairs; rewards and updates."""
+    """The discriminator, its optimiser and the expert's pairs; rewards and updates.
+    ``algo``: "gail", "airl", "gail-absorbing" or "airl-absorbing" (:func:`discriminator_kind`)."""
 
-    def __init__(self, kind: str, gamma: float, demos: Transitions, seed: int) -> None:
-        self.discriminator = make_discriminator(kind, gamma, seed)
+    def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
+        kind, self.absorbing = discriminator_kind(algo)
+        self.gamma = float(gamma)
+        self.discriminator = make_discriminator(kind, gamma, seed, self.absorbing)
         self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
         self.demos = demos
         self.rng = np.random.default_rng(seed)
@@ -93,14 +135,20 @@ class AdversarialReward:
 
     def logits(self, batch: Transitions) -> torch.Tensor:
         """The discriminator's logits (N,); ln pi(a | s) is computed for AIRL only (GAIL ignores it)."""
-        x, a, x_next, terminal = _tensors(batch)
+        x, a, x_next, terminal, absorbing = _tensors(batch)
         policy = self.policy if self.discriminator.kind == "airl" else None
-        return self.discriminator.logits(x, a, x_next, terminal, log_pi(policy, x, a))
+        return self.discriminator.logits(x, a, x_next, terminal, log_pi(policy, x, a), absorbing)
 
     def rewards(self, batch: Transitions) -> np.ndarray:
-        """The policy's rewards (N,) for the learner's transitions."""
+        """The policy's rewards (N,) for the learner's transitions; with an absorbing state, a
+        terminal one gains the discounted stay in s_a, gamma / (1 - gamma) times its reward there."""
         with torch.no_grad():
-            return self.discriminator.policy_reward(self.logits(batch)).numpy().astype(np.float32)
+            rewards = self.discriminator.policy_reward(self.logits(batch)).numpy().astype(np.float32)
+            if self.absorbing and batch.terminal.any():
+                stay = self.discriminator.policy_reward(self.logits(Transitions.absorbing_pairs(1)))
+                tail = self.gamma / (1.0 - self.gamma) * float(stay[0])
+                rewards = rewards + np.float32(tail) * batch.terminal
+        return rewards.astype(np.float32)
 
     def update(self, learner: Transitions) -> float:
         """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
@@ -144,9 +192,11 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
 
 
 def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
-    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .))."""
-    discriminator = make_discriminator(kind, gamma)
-    _load_weights(discriminator, read_discriminator(RunDir(run_dir)))
+    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
+    an absorbing state if it was trained with one."""
+    arrays = read_discriminator(RunDir(run_dir))
+    discriminator = make_discriminator(kind, gamma, absorbing=ABSORBING in arrays)
+    _load_weights(discriminator, arrays)
     return discriminator
 
 
@@ -197,20 +247,17 @@ def reward_wrapper(venv, reward: AdversarialReward):
                 if done:
                     x_next[i] = info["terminal_observation"]
                     terminal[i] = not info.get("TimeLimit.truncated", False)
-            batch = Transitions(
-                self.last_obs.copy(), self.actions.reshape(-1).astype(np.int64), x_next, terminal
-            )
+            actions = self.actions.reshape(-1).astype(np.int64)
+            batch = Transitions.of(self.last_obs.copy(), actions, x_next, terminal)
             self.kept.append(batch)
+            if reward.absorbing and terminal.any():
+                self.kept.append(Transitions.absorbing_pairs(int(terminal.sum())))
             self.last_obs = obs
             return obs, reward.rewards(batch), dones, infos
 
         def take(self) -> Transitions:
             kept, self.kept = self.kept, []
-            if not kept:
-                return Transitions(np.zeros((0, 16), np.float32), np.zeros(0, np.int64),
-                                   np.zeros((0, 16), np.float32), np.zeros(0, bool))  # fmt: skip
-            columns = zip(*((k.x, k.actions, k.x_next, k.terminal) for k in kept), strict=True)
-            return Transitions(*(np.concatenate(c) for c in columns))
+            return Transitions.concat(kept) if kept else Transitions.absorbing_pairs(0)
 
     return DiscriminatorReward()
 

@@ -102,6 +102,9 @@ BUILTIN_METHODS = {
     # adversarial imitation: PPO (the RL reference's settings and budget) on a discriminator's reward
     "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=50_000),
     "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=50_000),
+    # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
+    "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
+    "AIRL-absorbing": MethodSpec("AIRL-absorbing", "rl", algo="airl-absorbing", steps=50_000),
 }
 """The methods an experiment may list without defining them."""
 

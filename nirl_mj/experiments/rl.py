@@ -2,7 +2,8 @@
 
 ``ppo`` and ``dqn`` learn from the task's reward (the RL reference). ``gail`` and ``airl`` learn
 from the demonstrations: PPO with every reward replaced by a discriminator's
-(``nirl_mj.experiments.adversarial``); they never read the task's reward.
+(``nirl_mj.experiments.adversarial``); they never read the task's reward. ``gail-absorbing`` and
+``airl-absorbing`` are the same with an absorbing state (Kostrikov et al. 2019).
 
 NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
 phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
@@ -35,8 +36,10 @@ from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
-ALGOS = ("ppo", "dqn", "gail", "airl")
-ADVERSARIAL = ("gail", "airl")  # PPO on a discriminator's reward (nirl_mj.experiments.adversarial)
+ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing")
+"""PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
+state."""
+ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
     "ppo": {"n_steps": 1024, "batch_size": 64, "n_epochs": 10, "gamma": 0.99, "learning_rate": 3e-4},
@@ -136,7 +139,7 @@ def train_rl(
     venv, arenas = _environment(task, seed, len(record["train_seeds"]))
     callbacks = []
     if adversarial:
-        expert = adv.expert_transitions(trajectories, scaled)
+        expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.discriminator_kind(algo)[1])
         reward = adv.AdversarialReward(algo, SETTINGS[algo]["gamma"], expert, seed)
         if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
             reward.load_state(adv.read_discriminator(run))

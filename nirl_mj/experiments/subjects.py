@@ -46,7 +46,7 @@ class Subject:
         if self.run is None:
             return None
         record = self.run.read_record()
-        if record.get("kind") == "rl" and record.get("algo") == "airl":
+        if record.get("kind") == "rl" and str(record.get("algo")).startswith("airl"):
             from nirl_mj.experiments.adversarial import AirlReward
             from nirl_mj.experiments.rl import scaled
 
