@@ -468,3 +468,35 @@ def test_a_worker_death_costs_no_attempt_to_the_cells_beside_it(tmp_path):
     assert report.results["dies"] == {"survived": True} and not report.failures, report.failures
     assert retries and all("no attempt counted" in why for _, why in retries)
     assert "dies" in {cell_id for cell_id, _ in retries}
+
+
+def test_reuse_takes_the_same_cells_of_an_earlier_comparison_and_computes_the_rest(tmp_path, capsys):
+    def spec(name: str, methods: list[str], tests: int = 2) -> Path:
+        head = f'kind = "compare"\nruns = 2\ntests = {tests}\nmethods = {json.dumps(methods)}\n'
+        return write_spec(tmp_path, head, name)
+
+    def compare(path: Path, out: Path, *extra: str) -> int:
+        return main(
+            ["compare", "--task", str(path), "--out", str(out), "--executor", "serial", "--quiet", *extra]
+        )
+
+    old, new, fresh = tmp_path / "old", tmp_path / "new", tmp_path / "fresh"
+    assert compare(spec("old.toml", ["NIRL", "rule"]), old) == 0
+    wider = spec("new.toml", ["NIRL", "rule", "NIRL-classifier"])
+    assert compare(wider, new, "--reuse", str(old)) == 0
+    assert "reuse: 4 finished cells taken from" in capsys.readouterr().err
+    assert compare(wider, fresh) == 0  # the same experiment, every cell computed here
+    for ident in ("NIRL-run000", "NIRL-run001", "rule-run000", "rule-run001"):
+        taken = json.loads((new / "cells" / f"{ident}.json").read_text())
+        assert taken["reused_from"] == str(old.resolve())
+        assert taken["result"] == json.loads((fresh / "cells" / f"{ident}.json").read_text())["result"]
+    assert "reused_from" not in json.loads((new / "cells" / "NIRL-classifier-run000.json").read_text())
+    assert (new / "runs" / "NIRL" / "1" / "policy.npz").is_file()  # the training run came along
+    # Only methods and learner settings may differ; and nothing is taken twice.
+    assert (
+        compare(spec("other.toml", ["NIRL", "rule", "forward"], tests=3), tmp_path / "x", "--reuse", str(old))
+        == 2
+    )
+    assert "another experiment (it differs in: tests)" in capsys.readouterr().err
+    assert compare(wider, new, "--reuse", str(old)) == 0
+    assert "reuse: 0 finished cells taken" in capsys.readouterr().err

@@ -401,7 +401,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     run, table, json_line = _EXPERIMENTS[args.command]
     experiment = load_experiment(args.task, args.quick, args.command)
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
-    execution = Execution(args.executor, args.workers, args.address, args.retries, args.report)
+    execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
+                          getattr(args, "reuse", None))  # fmt: skip
     bars: list[tqdm] = []  # made once the number of cells is known
 
     def log(text: str) -> None:

@@ -88,6 +88,10 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         help="run nothing: write the tables from the cells finished so "
         "far (a partial report of a long or interrupted experiment; safe while it runs)",
     )
+    if name == "compare":
+        p.add_argument("--reuse", default=None, metavar="OLD",
+                       help="first copy the cells an earlier output directory OLD finished as the same "
+                       "computation (same method settings, demonstrations and test arenas)")  # fmt: skip
 
 
 # fmt: off

@@ -62,6 +62,10 @@ def run_compare(
     """
     execution = execution or Execution()
     out, jobs = prepare(experiment, out, execution, log)
+    if execution.reuse:
+        from nirl_mj.experiments.reuse import reuse_cells
+
+        reuse_cells(execution.reuse, experiment, out, jobs, cell_id, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
     with execution.start(out, log) as runner:
         if on_start:

@@ -231,10 +231,13 @@ class Execution:
     address: str | None = None
     retries: int = 2
     report_only: bool = False  # run nothing: report the cells already finished (a partial table)
+    reuse: str | None = None  # compare: an earlier output directory whose same cells are taken
 
     def __post_init__(self) -> None:
         if self.retries < 0:
             raise ExperimentError(f"--retries {self.retries}: must be >= 0")
+        if self.reuse and self.report_only:
+            raise ExperimentError("--reuse takes cells into a run; --report runs nothing: give one of them")
         if self.address and self.executor != "ray":
             raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
 
