@@ -18,12 +18,14 @@ Writes docs/PERFORMANCE.md.
 
     python bench/bench_table1.py [--runs 2] [--workers 2] [--existing runs/table1] [--quick]
     python bench/bench_table1.py --existing runs/table1 --existing-only [--efficiency 1.0]
+    python bench/bench_table1.py --existing runs/table1 --existing-only --window-until ISO [--window-dir DIR]
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import datetime
 import json
 import math
 import statistics
@@ -62,6 +64,30 @@ def method_rows(times: dict[str, list[float]]) -> list[list[str]]:
     return rows
 
 
+def window_efficiency(out: Path, workers: int, until: str) -> tuple[float, str]:
+    """The executor's measured scaling: the core time of the cells ``out`` computed itself (not
+    reused) and finished by ``until`` (ISO time, UTC), over ``workers`` x the window from the first
+    such cell's start to the last one's end (file times). A cell still running at the window's end
+    is not counted, so this errs low. Returns the efficiency and a sentence saying how it was measured."""
+    limit = datetime.datetime.fromisoformat(until).replace(tzinfo=datetime.UTC).timestamp()
+    spans = []
+    for path in (out / "cells").glob("*.json"):
+        record, end = json.loads(path.read_text()), path.stat().st_mtime
+        if "reused_from" not in record and end <= limit:
+            spans.append((end - float(record["seconds"]), end, float(record["seconds"])))
+    if not spans:
+        raise SystemExit(f"--window-until {until}: no cell of {out} finished by then")
+    start, end = min(s[0] for s in spans), max(s[1] for s in spans)
+    busy = sum(s[2] for s in spans)
+    efficiency = busy / (workers * (end - start))
+    when = f"{datetime.datetime.fromtimestamp(start, datetime.UTC):%Y-%m-%d %H:%M} UTC"
+    text = (f"Scaling measured on the cells `{out}` computed itself: {len(spans)} cells, "
+            f"{busy / 60:.1f} core-minutes of cells in a {(end - start) / 60:.1f}-minute window from {when} "
+            f"on {workers} workers: "
+            f"**{efficiency:.1%}** (cells still running at the window's end not counted).")  # fmt: skip
+    return efficiency, text
+
+
 def existing_report(out: Path, runs: int, efficiency: float, minutes: float = 15.0, cores: int = 2) -> str:
     """Core-minutes per run of each method in ``out``'s cells, the protocol's projected core time and
     the 2-core machines it needs to finish within ``minutes``."""
@@ -98,6 +124,10 @@ def main() -> None:
     parser.add_argument("--existing-only", action="store_true", help="report --existing alone (time nothing)")
     parser.add_argument("--efficiency", type=float, default=1.0,
                         help="the executor's scaling per worker, for the machine estimate")  # fmt: skip
+    parser.add_argument("--window-until", metavar="ISO", default=None,
+                        help="with --existing-only: measure the scaling on the cells of --window-dir "
+                        "(default --existing) finished by then (UTC), instead of --efficiency")  # fmt: skip
+    parser.add_argument("--window-dir", type=Path, default=None, help="see --window-until")
     args = parser.parse_args()
     if args.runs < 1 or args.workers < 1:
         parser.error(f"--runs {args.runs} --workers {args.workers}: both must be at least 1")
@@ -107,7 +137,12 @@ def main() -> None:
     if args.existing_only:
         if not args.existing:
             parser.error("--existing-only needs --existing DIR")
-        body = existing_report(args.existing, load_experiment("table1").runs, args.efficiency)
+        efficiency, measured = args.efficiency, ""
+        if args.window_until:
+            window_dir = args.window_dir or args.existing
+            efficiency, measured = window_efficiency(window_dir, args.workers, args.window_until)
+        body = existing_report(args.existing, load_experiment("table1").runs, efficiency)
+        body += f"\n\n{measured}" if measured else ""
         print(body)
         if not args.no_write:
             write_section("Table I protocol (bench/bench_table1.py)", body)

@@ -59,14 +59,25 @@ def test_airl_f_shaping_terminal_and_logit_by_hand():
         make_discriminator("wgan", 0.9)
 
 
-def test_gail_absorbing_state_is_one_learned_logit():
-    disc = GailDiscriminator(absorbing=True)
-    constant_heads(disc, net=[1.0] * 6)
+def at_absorbing(head: torch.nn.Sequential, values: list[float]) -> None:
+    """After ``constant_heads``: the head outputs ``values`` at s_a (its indicator input, the last,
+    set to 1) and its bias elsewhere. Path: the indicator drives hidden unit 0 to tanh(20) = 1 (in
+    float32), the second layer passes tanh(1) on, the last layer scales it."""
     with torch.no_grad():
-        disc.absorbing.fill_(math.log(3.0))
+        head[0].weight[0, -1] = 20.0
+        head[2].weight[0, 0] = 1.0
+        head[4].weight[:, 0] = (torch.tensor(values) - head[4].bias) / math.tanh(1.0)
+
+
+def test_gail_absorbing_state_is_an_input_of_the_network():
+    disc = GailDiscriminator(absorbing=True)
+    assert disc.net[0].in_features == 17
+    constant_heads(disc, net=[1.0] * 6)
+    at_absorbing(disc.net, [math.log(3.0)] * 6)
     absorbing = torch.tensor([False, True])
-    logits = disc.logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
-    np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-6)
+    x = torch.ones((2, 16))  # s_a's phi is not read: zeroed
+    logits = disc.logits(x, torch.tensor([0, 0]), absorbing=absorbing)
+    np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-5)
     with pytest.raises(ValueError, match="without an absorbing state"):
         GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
 
@@ -74,19 +85,20 @@ def test_gail_absorbing_state_is_one_learned_logit():
 def test_airl_absorbing_state_by_hand():
     disc = AirlDiscriminator(gamma=0.5, absorbing=True)
     constant_heads(disc, g=[1.0, 2.0, 0.0, 0.0, 0.0, 0.0], h=[4.0])
-    with torch.no_grad():
-        disc.absorbing.copy_(torch.tensor([0.5, 3.0]))  # g(s_a), h(s_a)
+    at_absorbing(disc.g, [0.5] * 6)  # g(s_a, .)
+    at_absorbing(disc.h, [3.0])  # h(s_a)
     x = torch.zeros((3, 16))
     actions, terminal = torch.tensor([0, 1, 0]), torch.tensor([False, True, True])
     absorbing = torch.tensor([False, False, True])
     # 1 + 0.5 * 4 - 4 = -1; into s_a: 2 + 0.5 * h(s_a) - 4 = -0.5; in s_a: 0.5 + (0.5 - 1) * 3 = -1
     f = disc.f(x, actions, x, terminal, absorbing)
-    np.testing.assert_allclose(f.detach().numpy(), [-1.0, -0.5, -1.0], rtol=1e-6)
+    np.testing.assert_allclose(f.detach().numpy(), [-1.0, -0.5, -1.0], rtol=1e-5)
     # s_a offers one action: ln pi = 0 there, whatever the policy's own ln pi in the zero input
     log_pi = torch.tensor([math.log(0.5), math.log(0.25), math.log(0.1)])
     logits = disc.logits(x, actions, x, terminal, log_pi, absorbing)
     expected = [-1 + math.log(2), -0.5 + math.log(4), -1.0]
-    np.testing.assert_allclose(logits.detach().numpy(), expected, rtol=1e-6)
+    np.testing.assert_allclose(logits.detach().numpy(), expected, rtol=1e-5)
+    np.testing.assert_allclose(disc.reward(np.zeros((1, 16))), [[1, 2, 0, 0, 0, 0]], atol=1e-6)  # g(s, .)
 
 
 class Corridor:
@@ -169,8 +181,7 @@ def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
     demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail-absorbing", 0.75, demos, seed=0)
     constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 in every real state
-    with torch.no_grad():
-        reward.discriminator.absorbing.fill_(math.log(3.0))  # in s_a: -ln(1 - 3/4) = ln 4
+    at_absorbing(reward.discriminator.net, [math.log(3.0)] * 6)  # in s_a: -ln(1 - 3/4) = ln 4
     venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
     venv.reset()
     rewards = []
@@ -211,7 +222,7 @@ def test_a_short_adversarial_run_beats_the_uniform_random_policy(tmp_path, algo)
         from nirl_mj.experiments.subjects import run_subject
 
         disc = load_discriminator(tmp_path / "run", "airl", 0.99)
-        assert hasattr(disc, "absorbing") == algo.endswith("absorbing")  # read from the saved weights
+        assert disc.inputs.absorbing == algo.endswith("absorbing")  # read from the saved weights
         g = disc.reward(np.zeros((2, 16)))
         reward = run_subject(tmp_path / "run").reward()
         phi = np.zeros((2, 16), np.float32)

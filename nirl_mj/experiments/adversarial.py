@@ -32,9 +32,10 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
-from nirl_mj.learn.adversarial import ABSORBING, discriminator_loss, make_discriminator
+from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, make_discriminator
 
 DISCRIMINATOR_FILE = "discriminator.npz"
+ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -195,7 +196,8 @@ def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
     """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
     an absorbing state if it was trained with one."""
     arrays = read_discriminator(RunDir(run_dir))
-    discriminator = make_discriminator(kind, gamma, absorbing=ABSORBING in arrays)
+    first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
+    discriminator = make_discriminator(kind, gamma, absorbing=first.shape[1] == N_INPUTS + 1)
     _load_weights(discriminator, arrays)
     return discriminator
 

@@ -19,13 +19,14 @@ phi(s) scaled to [0, 1] (16 values, as the RL reference sees them) and the actio
 section 4.2). Without it an episode's end is worth nothing after its last reward, so a reward that is
 negative on the learner's own pairs (AIRL's f - ln pi is) pays the policy to end episodes early: a
 collision. With it, a terminal transition leads to an absorbing state s_a that the discriminator
-also classifies (one pair per terminal episode, expert's and learner's), and the policy is paid the
-discounted stay there, gamma / (1 - gamma) times s_a's reward (``nirl_mj.experiments.adversarial``).
-Here s_a is one learned value, not an input: GAIL's logit at s_a is a scalar; AIRL's f reads
-scalars g(s_a) and h(s_a): f(s, a, s_a) = g(s, a) + gamma h(s_a) - h(s) and
-f(s_a, ., s_a) = g(s_a) + (gamma - 1) h(s_a), and ln pi = 0 there: s_a offers one action, no
-choice, so no entropy (a uniform pi over six would pay ln 6 per step for having ended).
-Without the option h(s_a) = 0 and s_a is never classified: Fu et al.'s AIRL, unchanged.
+also classifies (one pair (s_a, ., s_a) per terminal episode, expert's and learner's), and the policy
+is paid the discounted stay there, gamma / (1 - gamma) times s_a's reward
+(``nirl_mj.experiments.adversarial``). As in DAC, the networks read one more input, 1 at s_a and 0
+elsewhere (phi is zeros at s_a), so s_a's value moves with the network, not as one slow scalar.
+AIRL: f(s, a, s_a) = g(s, a) + gamma h(s_a) - h(s) and f(s_a, ., s_a) = g(s_a, 0) + (gamma - 1) h(s_a);
+ln pi = 0 at s_a, which offers one action (a uniform pi over six would pay ln 6 per step for
+having ended). Without the option h(s') = 0 after a terminal transition and s_a is never classified:
+Fu et al.'s AIRL, unchanged.
 
 Units: logits and rewards are nats; gamma is the policy learner's discount.
 """
@@ -37,7 +38,6 @@ import torch
 from torch.nn import functional
 
 N_INPUTS, N_ACTIONS = 16, 6
-ABSORBING = "absorbing"  # the name of the absorbing state's parameters (and of their saved array)
 
 
 def mlp(n_in: int, n_out: int, hidden: int, generator: torch.Generator) -> torch.nn.Sequential:
@@ -53,23 +53,45 @@ def mlp(n_in: int, n_out: int, hidden: int, generator: torch.Generator) -> torch
     return torch.nn.Sequential(*layers)
 
 
+class Inputs:
+    """The networks' inputs: x (N, 16) scaled phi(s); with an absorbing state, one more column, 1 at
+    s_a (``absorbing`` (N,) bool) and 0 elsewhere."""
+
+    def __init__(self, absorbing: bool) -> None:
+        self.absorbing = absorbing
+        self.width = N_INPUTS + int(absorbing)
+
+    def __call__(self, x: torch.Tensor, absorbing: torch.Tensor | None = None) -> torch.Tensor:
+        if not self.absorbing:
+            if absorbing is not None and bool(absorbing.any()):
+                raise ValueError("absorbing pairs given to a discriminator without an absorbing state: "
+                                 "make it with absorbing=True")  # fmt: skip
+            return x
+        marks = torch.zeros(len(x)) if absorbing is None else absorbing.to(x.dtype)
+        return torch.cat([x * (1 - marks[:, None]), marks[:, None]], dim=1)
+
+    def absorbing_state(self) -> torch.Tensor:
+        """s_a as an input row (1, 17)."""
+        row = torch.zeros((1, self.width))
+        row[0, -1] = 1.0
+        return row
+
+
 class GailDiscriminator(torch.nn.Module):
     """GAIL's D(s, a) = sigmoid(l(s, a)); ``logits(x, a, x_next, terminal, log_pi, absorbing)`` reads
-    x, a and absorbing only. With ``absorbing``, ``self.absorbing`` (1,) is the logit at s_a."""
+    x, a and absorbing only."""
 
     kind = "gail"
 
     def __init__(self, hidden: int = 64, seed: int = 0, absorbing: bool = False) -> None:
         super().__init__()
-        self.net = mlp(N_INPUTS, N_ACTIONS, hidden, torch.Generator().manual_seed(seed))
-        if absorbing:
-            self.absorbing = torch.nn.Parameter(torch.zeros(1))
+        self.inputs = Inputs(absorbing)
+        self.net = mlp(self.inputs.width, N_ACTIONS, hidden, torch.Generator().manual_seed(seed))
 
     def logits(self, x, actions, x_next=None, terminal=None, log_pi=None, absorbing=None) -> torch.Tensor:
         """l(s, a) (N,): x (N, 16) scaled phi(s), actions (N,) int; ``absorbing`` (N,) bool marks
-        the pairs (s_a, ., s_a), whose x and a are not read."""
-        logits = self.net(x).gather(1, actions.long()[:, None])[:, 0]
-        return _at_absorbing(self, logits, absorbing, lambda p: p[0])
+        the pairs (s_a, ., s_a) (their x is not read)."""
+        return self.net(self.inputs(x, absorbing)).gather(1, actions.long()[:, None])[:, 0]
 
     @staticmethod
     def policy_reward(logits: torch.Tensor) -> torch.Tensor:
@@ -78,8 +100,7 @@ class GailDiscriminator(torch.nn.Module):
 
 
 class AirlDiscriminator(torch.nn.Module):
-    """AIRL's D with f = g(s, a) + gamma h(s') - h(s); the logit l = f - ln pi(a | s).
-    With ``absorbing``, ``self.absorbing`` (2,) holds (g(s_a), h(s_a))."""
+    """AIRL's D with f = g(s, a) + gamma h(s') - h(s); the logit l = f - ln pi(a | s)."""
 
     kind = "airl"
 
@@ -87,25 +108,26 @@ class AirlDiscriminator(torch.nn.Module):
         super().__init__()
         generator = torch.Generator().manual_seed(seed)
         self.gamma = float(gamma)
-        self.g = mlp(N_INPUTS, N_ACTIONS, hidden, generator)
-        self.h = mlp(N_INPUTS, 1, hidden, generator)
-        if absorbing:
-            self.absorbing = torch.nn.Parameter(torch.zeros(2))
+        self.inputs = Inputs(absorbing)
+        self.g = mlp(self.inputs.width, N_ACTIONS, hidden, generator)
+        self.h = mlp(self.inputs.width, 1, hidden, generator)
 
     def f(self, x, actions, x_next, terminal, absorbing=None) -> torch.Tensor:
-        """f(s, a, s') (N,); ``terminal`` (N,) bool: s' is s_a, h(s') = h(s_a) (0 without the
-        option); ``absorbing`` (N,) bool marks the pairs (s_a, ., s_a)."""
-        g = self.g(x).gather(1, actions.long()[:, None])[:, 0]
-        h_next = torch.where(terminal.bool(), self._h_absorbing(), self.h(x_next)[:, 0])
-        f = g + self.gamma * h_next - self.h(x)[:, 0]
-        return _at_absorbing(self, f, absorbing, lambda p: p[0] + (self.gamma - 1.0) * p[1])
-
-    def _h_absorbing(self) -> torch.Tensor:
-        return self.absorbing[1] if hasattr(self, ABSORBING) else torch.zeros(())
+        """f(s, a, s') (N,); ``terminal`` (N,) bool: s' is s_a, whose h is 0 without an absorbing
+        state; ``absorbing`` (N,) bool marks the pairs (s_a, ., s_a)."""
+        inputs = self.inputs(x, absorbing)
+        g = self.g(inputs).gather(1, actions.long()[:, None])[:, 0]
+        if self.inputs.absorbing:
+            h_next = torch.where(terminal.bool(), self.h(self.inputs.absorbing_state())[0, 0],
+                                 self.h(self.inputs(x_next))[:, 0])  # fmt: skip
+        else:
+            h_next = self.h(x_next)[:, 0] * (~terminal.bool())
+        return g + self.gamma * h_next - self.h(inputs)[:, 0]
 
     def logits(self, x, actions, x_next, terminal, log_pi, absorbing=None) -> torch.Tensor:
         """l = f(s, a, s') - ln pi(a | s) (N,); at s_a, ln pi = 0 (one action)."""
-        log_pi = _at_absorbing(self, log_pi, absorbing, lambda _: torch.zeros(()))
+        if absorbing is not None and self.inputs.absorbing:
+            log_pi = log_pi * (~absorbing.bool())
         return self.f(x, actions, x_next, terminal, absorbing) - log_pi
 
     @staticmethod
@@ -116,19 +138,7 @@ class AirlDiscriminator(torch.nn.Module):
     def reward(self, x: np.ndarray) -> np.ndarray:
         """The learned reward g(s, .) (N, 6) in the scaled states x (N, 16)."""
         with torch.no_grad():
-            return self.g(torch.as_tensor(np.asarray(x, dtype=np.float32))).numpy()
-
-
-def _at_absorbing(discriminator: torch.nn.Module, values: torch.Tensor, absorbing, value) -> torch.Tensor:
-    """``values`` (N,) with the rows marked in ``absorbing`` (N,) bool replaced by
-    ``value(discriminator.absorbing)``; unchanged without absorbing rows. A discriminator without
-    the option refuses them."""
-    if absorbing is None or not bool(absorbing.any()):
-        return values
-    if not hasattr(discriminator, ABSORBING):
-        raise ValueError("absorbing pairs given to a discriminator without an absorbing state: "
-                         "make it with absorbing=True")  # fmt: skip
-    return torch.where(absorbing.bool(), value(discriminator.absorbing).to(values.dtype), values)
+            return self.g(self.inputs(torch.as_tensor(np.asarray(x, dtype=np.float32)))).numpy()
 
 
 def discriminator_loss(expert_logits: torch.Tensor, learner_logits: torch.Tensor) -> torch.Tensor:
