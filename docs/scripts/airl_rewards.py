@@ -6,11 +6,13 @@ If l is mostly negative on the learner's own pairs, a shorter episode earns more
 collision is rewarded (the termination bias of adversarial imitation with terminal states; Kostrikov
 et al. 2019). This script measures that on a trained AIRL run of a compare experiment.
 
-    python docs/scripts/airl_rewards.py OUT [RUN ...]   (OUT: the experiment's --out; default run 0)
+    python docs/scripts/airl_rewards.py OUT [RUN ...] [--method AIRL-absorbing]
+    (OUT: the experiment's --out; default run 0; --method: the row, default AIRL)
 
 Prints, per run: the mean logit per decision on 20 of its own training-arena episodes (sampled
 actions, as trained) and on the experiment's demonstrations, the share of negative logits, and the
-outcomes of those episodes.
+outcomes of those episodes. With an absorbing state (algo "airl-absorbing"), also the logit at s_a
+and what a terminal step gains from it, gamma / (1 - gamma) times that logit.
 """
 
 from __future__ import annotations
@@ -24,7 +26,12 @@ from stable_baselines3 import PPO
 
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, read_discriminator
+from nirl_mj.experiments.adversarial import (
+    AdversarialReward,
+    Transitions,
+    expert_transitions,
+    read_discriminator,
+)
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.rl import load_rl_policy, scaled
 from nirl_mj.experiments.seeds import domain_seeds
@@ -36,15 +43,15 @@ def logits_of(reward: AdversarialReward, trajectories) -> np.ndarray:
     return reward.logits(expert_transitions(trajectories, scaled)).detach().numpy()
 
 
-def main(out: Path, runs: list[int]) -> None:
+def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
     demos = load_dataset(out / "demos.npz")
     for r in runs:
-        run_dir = out / "runs" / "AIRL" / str(r)
+        run_dir = out / "runs" / method / str(r)
         record = RunDir(run_dir).read_record()
         policy, _ = load_rl_policy(run_dir, seed=r)
         model = PPO.load(RunDir(run_dir).model_file(), device="cpu")
         gamma = float(record["config"]["gamma"])
-        reward = AdversarialReward("airl", gamma, expert_transitions(demos, scaled), seed=0)
+        reward = AdversarialReward(record["algo"], gamma, expert_transitions(demos, scaled), seed=0)
         reward.load_state(read_discriminator(RunDir(run_dir)))
         reward.policy = model.policy
         env = make_env(specs.from_dict(record["task"]))
@@ -56,9 +63,21 @@ def main(out: Path, runs: list[int]) -> None:
         success, collision = 100 * metrics["success_rate"], 100 * metrics["collision_rate"]
         outcomes = f"success {success:.0f} %, collision {collision:.0f} %"
         demo_part = f"mean logit {expert.mean():+.2f}, {100 * (expert < 0).mean():.0f} % negative"
+        absorbing = ""
+        if reward.absorbing:
+            with torch.no_grad():
+                at = float(reward.logits(Transitions.absorbing_pairs(1))[0])
+            tail = gamma / (1 - gamma) * at
+            absorbing = f" | s_a: logit {at:+.2f} per step, {tail:+.1f} to a terminal step"
         print(f"run {r}: own pairs: {own_part}, {np.mean(lengths):.0f} decisions per episode, {outcomes} "
-              f"| demonstrations: {demo_part}")  # fmt: skip
+              f"| demonstrations: {demo_part}{absorbing}")  # fmt: skip
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), [int(x) for x in sys.argv[2:]] or [0])
+    args = sys.argv[1:]
+    name = "AIRL"
+    if "--method" in args:
+        at = args.index("--method")
+        name = args[at + 1]
+        del args[at : at + 2]
+    main(Path(args[0]), [int(x) for x in args[1:]] or [0], name)
