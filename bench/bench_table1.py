@@ -68,8 +68,12 @@ def window_efficiency(out: Path, workers: int, until: str) -> tuple[float, str]:
     """The executor's measured scaling: the core time of the cells ``out`` computed itself (not
     reused) and finished by ``until`` (ISO time, UTC), over ``workers`` x the window from the first
     such cell's start to the last one's end (file times). A cell still running at the window's end
-    is not counted, so this errs low. Returns the efficiency and a sentence saying how it was measured."""
-    limit = datetime.datetime.fromisoformat(until).replace(tzinfo=datetime.UTC).timestamp()
+    is not counted, so this errs low; a directory resumed after a pause, or copied without its file
+    times, gives a meaningless figure. Returns the efficiency and a sentence saying how it was measured."""
+    limit_time = datetime.datetime.fromisoformat(until)
+    if limit_time.tzinfo is None:
+        limit_time = limit_time.replace(tzinfo=datetime.UTC)
+    limit = limit_time.timestamp()
     spans = []
     for path in (out / "cells").glob("*.json"):
         record, end = json.loads(path.read_text()), path.stat().st_mtime

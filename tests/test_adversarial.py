@@ -78,8 +78,32 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
     x = torch.ones((2, 16))  # s_a's phi is not read: zeroed
     logits = disc.logits(x, torch.tensor([0, 0]), absorbing=absorbing)
     np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-5)
+    # the networks' input: phi zeroed at s_a, then the indicator
+    expected = torch.cat(
+        [torch.stack([torch.ones(16), torch.zeros(16)]), torch.tensor([[0.0], [1.0]])], dim=1
+    )
+    assert torch.equal(disc.inputs(x, absorbing), expected)
     with pytest.raises(ValueError, match="without an absorbing state"):
         GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
+
+
+@pytest.mark.parametrize("algo", ["gail", "gail-absorbing", "airl", "airl-absorbing"])
+def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_path, algo):
+    from nirl_mj.data.rundir import RunDir
+    from nirl_mj.experiments.adversarial import (
+        AdversarialReward,
+        Transitions,
+        load_discriminator,
+        save_discriminator,
+    )
+
+    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    reward = AdversarialReward(algo, 0.99, demos, seed=3)
+    save_discriminator(RunDir(tmp_path), reward)
+    loaded = load_discriminator(tmp_path, algo.split("-")[0], 0.99)
+    assert loaded.inputs.absorbing == algo.endswith("absorbing")
+    for name, value in reward.discriminator.state_dict().items():
+        assert torch.equal(loaded.state_dict()[name], value)
 
 
 def test_airl_absorbing_state_by_hand():

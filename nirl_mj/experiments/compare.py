@@ -61,10 +61,12 @@ def run_compare(
     ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
     """
     execution = execution or Execution()
+    if execution.reuse:
+        from nirl_mj.experiments.reuse import read_old, reuse_cells
+
+        read_old(execution.reuse, experiment)  # a wrong OLD is refused before OUT is made
     out, jobs = prepare(experiment, out, execution, log)
     if execution.reuse:
-        from nirl_mj.experiments.reuse import reuse_cells
-
         reuse_cells(execution.reuse, experiment, out, jobs, cell_id, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
     with execution.start(out, log) as runner:

@@ -21,6 +21,7 @@ same numbers, as resuming an output directory does. Each copied cell records whe
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -54,6 +55,35 @@ def old_test_seeds(saved: dict, seed: int, tests: int, demo_seeds: set[int]) -> 
     return held_out_seeds(seed, tests, seen)
 
 
+def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
+    """OLD (absolute) and its saved identity; a clear error if OLD is not an experiment's output
+    directory with demonstrations, or differs from ``experiment`` in a shared key. Called before
+    the new output directory is made, so a wrong OLD costs nothing."""
+    old = Path(old).resolve()
+    marker = old / EXPERIMENT_FILE
+    if not marker.is_file() or not (old / "demos.npz").is_file():
+        raise ExperimentError(f"--reuse {old}: holds no nirl-mj experiment with demonstrations")
+    try:
+        saved = json.loads(marker.read_text())
+    except json.JSONDecodeError as exc:
+        raise ExperimentError(f"--reuse {old}: {marker} is corrupted ({exc})") from None
+    identity = experiment.identity()
+    differ = [k for k in SHARED_KEYS if saved.get(k) != identity.get(k)]
+    if differ:
+        raise ExperimentError(f"--reuse {old}: another experiment (it differs in: {', '.join(differ)}); "
+                              "only methods and learner settings may differ")  # fmt: skip
+    return old, saved
+
+
+def copy_run(source: Path, target: Path) -> None:
+    """``source`` copied to ``target`` (which must not exist) through a temporary sibling, so a
+    killed copy leaves no half-copied run where a run is looked for."""
+    temporary = target.with_name(f".{target.name}.reuse-tmp")
+    shutil.rmtree(temporary, ignore_errors=True)  # left by a killed copy
+    shutil.copytree(source, temporary)
+    os.replace(temporary, target)
+
+
 def reuse_cells(
     old: str | Path,
     experiment: Experiment,
@@ -63,25 +93,19 @@ def reuse_cells(
     log: Callable[[str], None],
 ) -> list[str]:
     """Copies into ``out`` every cell of ``jobs`` that OLD finished as the same computation (the
-    rules in the module doc) and ``out`` has not; returns their ids. A clear error if OLD is not a
-    comparison output directory that shares the experiment's keys."""
+    rules in the module doc) and ``out`` has not; returns their ids. A cell whose training run
+    ``out`` already holds (an interrupted one) is left to be computed. A clear error if OLD is not
+    an output directory that shares the experiment's keys."""
     from nirl_mj.data.atomic import write_text
     from nirl_mj.data.dataset import load_dataset
     from nirl_mj.experiments.executors import CellStore
 
-    old = Path(old).resolve()
+    old, saved = read_old(old, experiment)
     if old == out:
         raise ExperimentError(f"--reuse {old} is the output directory itself; give an earlier one")
-    marker = old / EXPERIMENT_FILE
-    if not marker.is_file() or not (old / "demos.npz").is_file():
-        raise ExperimentError(f"--reuse {old}: holds no nirl-mj experiment with demonstrations")
-    saved, identity = json.loads(marker.read_text()), experiment.identity()
-    differ = [k for k in SHARED_KEYS if saved.get(k) != identity.get(k)]
-    if differ:
-        raise ExperimentError(f"--reuse {old}: another experiment (it differs in: {', '.join(differ)}); "
-                              "only methods and learner settings may differ")  # fmt: skip
     if not same_arrays(old / "demos.npz", out / "demos.npz"):
         raise ExperimentError(f"--reuse {old}: its demonstrations differ from {out / 'demos.npz'}")
+    identity = experiment.identity()
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
     new_methods = {m["name"]: m for m in identity["methods"]}
     old_learners, new_learners = saved.get("learners", {}), identity["learners"]
@@ -92,17 +116,17 @@ def reuse_cells(
         ident = cell_id(name, run)
         if target.load(ident) is not None or old_methods.get(name) != new_methods[name]:
             continue
-        if old_learners.get(name) != new_learners.get(name) or not source.path(ident).is_file():
+        if old_learners.get(name) != new_learners.get(name) or source.load(ident) is None:
             continue
         if run not in tests_match:
             seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
             tests_match[run] = seeds == list(job.test_seeds)
-        record = json.loads(source.path(ident).read_text())
-        if not tests_match[run] or "result" not in record:
-            continue
         old_run, new_run = old / "runs" / name / str(job.seed), Path(job.run_dir)
-        if old_run.is_dir() and not new_run.exists():
-            shutil.copytree(old_run, new_run)
+        if not tests_match[run] or new_run.exists():
+            continue
+        if old_run.is_dir():
+            copy_run(old_run, new_run)
+        record = json.loads(source.path(ident).read_text())
         target.directory.mkdir(parents=True, exist_ok=True)
         write_text(target.path(ident), json.dumps({**record, "reused_from": str(old)}, indent=1))
         taken.append(ident)
