@@ -1,4 +1,4 @@
-"""What AIRL's policy is paid per decision: the sign of its reward on its own and the expert's pairs.
+"""What AIRL's (or GAIL's) policy is paid per decision: its reward on its own and the expert's pairs.
 
 AIRL's policy reward is the discriminator's logit l = f(s, a, s') - ln pi(a | s), with
 f = g(s, a) + gamma h(s') - h(s) and h(s') = 0 after a terminal state (a collision or an arrival).
@@ -9,10 +9,11 @@ et al. 2019). This script measures that on a trained AIRL run of a compare exper
     python docs/scripts/airl_rewards.py OUT [RUN ...] [--method AIRL-absorbing]
     (OUT: the experiment's --out; default run 0; --method: the row, default AIRL)
 
-Prints, per run: the mean logit per decision on 20 of its own training-arena episodes (sampled
-actions, as trained) and on the experiment's demonstrations, the share of negative logits, and the
-outcomes of those episodes. With an absorbing state (algo "airl-absorbing"), also the logit at s_a
-and what a terminal step gains from it, gamma / (1 - gamma) times that logit.
+GAIL's reward is softplus of the logit, always positive. Prints, per run: the mean reward per
+decision on 20 of its own training-arena episodes (sampled actions, as trained) and on the
+experiment's demonstrations, the share of negative rewards, and the outcomes of those episodes.
+With an absorbing state ("-absorbing" algos), also the reward at s_a and what a terminal step gains
+from it, gamma / (1 - gamma) times that reward.
 """
 
 from __future__ import annotations
@@ -39,8 +40,10 @@ from nirl_mj.sim import spec as specs
 from nirl_mj.sim.task import make_env
 
 
-def logits_of(reward: AdversarialReward, trajectories) -> np.ndarray:
-    return reward.logits(expert_transitions(trajectories, scaled)).detach().numpy()
+def rewards_of(reward: AdversarialReward, trajectories) -> np.ndarray:
+    """The policy's reward per decision (AIRL's is the logit; GAIL's softplus of it)."""
+    logits = reward.logits(expert_transitions(trajectories, scaled))
+    return reward.discriminator.policy_reward(logits).detach().numpy()
 
 
 def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
@@ -57,18 +60,20 @@ def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
         env = make_env(specs.from_dict(record["task"]))
         metrics, episodes = evaluate(env, policy, domain_seeds("train", r, 20))
         with torch.no_grad():
-            own, expert = logits_of(reward, episodes), logits_of(reward, demos)
+            own, expert = rewards_of(reward, episodes), rewards_of(reward, demos)
         lengths = [len(t) for t in episodes]
-        own_part = f"mean logit {own.mean():+.2f} per decision, {100 * (own < 0).mean():.0f} % negative"
+        own_part = f"mean reward {own.mean():+.2f} per decision, {100 * (own < 0).mean():.0f} % negative"
         success, collision = 100 * metrics["success_rate"], 100 * metrics["collision_rate"]
         outcomes = f"success {success:.0f} %, collision {collision:.0f} %"
-        demo_part = f"mean logit {expert.mean():+.2f}, {100 * (expert < 0).mean():.0f} % negative"
+        demo_part = f"mean reward {expert.mean():+.2f}, {100 * (expert < 0).mean():.0f} % negative"
         absorbing = ""
         if reward.absorbing:
             with torch.no_grad():
-                at = float(reward.logits(Transitions.absorbing_pairs(1))[0])
+                at = float(
+                    reward.discriminator.policy_reward(reward.logits(Transitions.absorbing_pairs(1)))[0]
+                )
             tail = gamma / (1 - gamma) * at
-            absorbing = f" | s_a: logit {at:+.2f} per step, {tail:+.1f} to a terminal step"
+            absorbing = f" | s_a: reward {at:+.2f} per step, {tail:+.1f} to a terminal step"
         print(f"run {r}: own pairs: {own_part}, {np.mean(lengths):.0f} decisions per episode, {outcomes} "
               f"| demonstrations: {demo_part}{absorbing}")  # fmt: skip
 
