@@ -87,7 +87,7 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
         GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
 
 
-@pytest.mark.parametrize("algo", ["gail", "gail-absorbing", "airl", "airl-absorbing"])
+@pytest.mark.parametrize("algo", ["gail", "gail-absorbing", "airl", "airl-absorbing", "airl-norm"])
 def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_path, algo):
     from nirl_mj.data.rundir import RunDir
     from nirl_mj.experiments.adversarial import (
@@ -104,6 +104,33 @@ def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_pat
     assert loaded.inputs.absorbing == algo.endswith("absorbing")
     for name, value in reward.discriminator.state_dict().items():
         assert torch.equal(loaded.state_dict()[name], value)
+    if algo.endswith("norm"):  # a resume goes on with the reward normaliser's statistics
+        from nirl_mj.experiments.adversarial import read_discriminator
+
+        reward.norm.update(np.array([1.0, 2.0]))
+        save_discriminator(RunDir(tmp_path), reward)
+        resumed = AdversarialReward(algo, 0.99, demos, seed=3)
+        resumed.load_state(read_discriminator(RunDir(tmp_path)))
+        np.testing.assert_array_equal(resumed.norm.state(), [1.5, 0.25, 2])
+
+
+def test_running_norm_by_hand():
+    from nirl_mj.learn.running_norm import RunningNorm
+
+    norm = RunningNorm(eps=0.0)
+    assert (norm.mean, norm.var, norm.count) == (0.0, 1.0, 0)  # before any value: the identity
+    # each batch joins the statistics, then is normalised by them
+    np.testing.assert_allclose(norm(np.array([1.0, 3.0])), [-1.0, 1.0])
+    assert (norm.mean, norm.var, norm.count) == (2.0, 1.0, 2)  # mean of 1, 3; variance ((-1)^2 + 1^2) / 2
+    np.testing.assert_allclose(norm(np.array([5.0])), [2.0 / math.sqrt(8.0 / 3.0)])
+    np.testing.assert_allclose([norm.mean, norm.var], [3.0, 8.0 / 3.0])  # of 1, 3, 5: (4 + 0 + 4) / 3
+    norm.update(np.array([]))
+    assert norm.count == 3
+    values = np.random.default_rng(0).normal(2.0, 3.0, 1000)
+    merged = RunningNorm()
+    for batch in np.array_split(values, 7):  # merging batches of any sizes = the statistics of all
+        merged.update(batch)
+    np.testing.assert_allclose([merged.mean, merged.var], [values.mean(), values.var()], rtol=1e-12)
 
 
 def test_airl_absorbing_state_by_hand():
@@ -218,6 +245,31 @@ def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
     np.testing.assert_array_equal(kept.absorbing, [False, False, True])  # s_a joins the learner's pairs
     with pytest.raises(ValueError, match="accepted: gail, airl, gail-absorbing"):
         AdversarialReward("airl-lite", 0.75, demos, seed=0)
+
+
+def test_with_norm_each_reward_is_normalised_by_the_rewards_before_it():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+
+    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    reward = AdversarialReward("gail-norm", 0.99, demos, seed=0)
+    # GAIL's reward softplus(l): ln 2 for l = 0 (action 3), ln(1 + e) for l = 1 (action 4)
+    constant_heads(reward.discriminator, net=[0.0, 0.0, 0.0, 0.0, 1.0, 0.0])
+    venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
+    venv.reset()
+    rewards = []
+    for action in (3, 4, 3):  # the corridor ends after two steps; the third starts a new episode
+        venv.step_async(np.array([action]))
+        rewards.append(float(venv.step_wait()[1][0]))
+    a, b = math.log(2), math.log(1 + math.e)
+    eps = reward.norm.eps
+    # each against the mean and variance of the rewards so far, itself included
+    second = (b - (a + b) / 2) / math.sqrt(((b - a) / 2) ** 2 + eps)
+    mean = (2 * a + b) / 3
+    third = (a - mean) / math.sqrt((2 * (a - mean) ** 2 + (b - mean) ** 2) / 3 + eps)
+    np.testing.assert_allclose(rewards, [0.0, second, third], rtol=1e-5, atol=1e-7)
 
 
 @pytest.mark.parametrize("algo", ["gail", "airl", "airl-absorbing"])

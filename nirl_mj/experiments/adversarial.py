@@ -13,6 +13,9 @@ other rows; the demonstrations are the experiment's 30.
 ``nirl_mj.learn.adversarial``): every terminal episode, the expert's and the learner's, adds one pair
 (s_a, ., s_a) to the discriminator's data, and a terminal transition's reward gains the discounted
 stay in s_a, gamma / (1 - gamma) times the policy's reward there. A timeout is a truncation: no s_a.
+``gail-norm`` and ``airl-norm`` hand PPO the same rewards normalised by the running mean and
+variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``), the imitation
+library's default (its scripts wrap every reward net in ``NormalizedRewardNet(RunningNorm)``).
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -33,9 +36,12 @@ from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
 from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, make_discriminator
+from nirl_mj.learn.running_norm import RunningNorm
 
 DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
+NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
+NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -102,14 +108,22 @@ def _tensors(t: Transitions) -> tuple[torch.Tensor, ...]:
             as_tensor(t.absorbing, dtype=torch.bool))  # fmt: skip
 
 
-def discriminator_kind(algo: str) -> tuple[str, bool]:
-    """The discriminator of an adversarial ``algo`` and whether it has an absorbing state:
-    "airl-absorbing" -> ("airl", True)."""
+@dataclass(frozen=True)
+class Variant:
+    """An adversarial algorithm: its discriminator ("gail" or "airl") and its one option."""
+
+    kind: str
+    absorbing: bool  # "-absorbing": Kostrikov et al.'s absorbing state
+    normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
+
+
+def variant_of(algo: str) -> Variant:
+    """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", True, False)."""
     kind, _, option = algo.partition("-")
-    if kind not in ("gail", "airl") or option not in ("", ABSORBING):
+    if kind not in ("gail", "airl") or option not in ("", ABSORBING, NORMALISED):
         raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: gail, airl, "
-                         "gail-absorbing, airl-absorbing")  # fmt: skip
-    return kind, option == ABSORBING
+                         "gail-absorbing, airl-absorbing, gail-norm, airl-norm")  # fmt: skip
+    return Variant(kind, option == ABSORBING, option == NORMALISED)
 
 
 def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -123,12 +137,14 @@ def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
 
 class AdversarialReward:
     """The discriminator, its optimiser and the expert's pairs; rewards and updates.
-    ``algo``: "gail", "airl", "gail-absorbing" or "airl-absorbing" (:func:`discriminator_kind`)."""
+    ``algo``: "gail" or "airl", alone or with "-absorbing" or "-norm" (:func:`variant_of`)."""
 
     def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
-        kind, self.absorbing = discriminator_kind(algo)
+        variant = variant_of(algo)
+        self.absorbing = variant.absorbing
+        self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
-        self.discriminator = make_discriminator(kind, gamma, seed, self.absorbing)
+        self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing)
         self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
         self.demos = demos
         self.rng = np.random.default_rng(seed)
@@ -142,13 +158,16 @@ class AdversarialReward:
 
     def rewards(self, batch: Transitions) -> np.ndarray:
         """The policy's rewards (N,) for the learner's transitions; with an absorbing state, a
-        terminal one gains the discounted stay in s_a, gamma / (1 - gamma) times its reward there."""
+        terminal one gains the discounted stay in s_a, gamma / (1 - gamma) times its reward there.
+        With "-norm" they are normalised by all the rewards handed out so far, themselves included."""
         with torch.no_grad():
             rewards = self.discriminator.policy_reward(self.logits(batch)).numpy().astype(np.float32)
             if self.absorbing and batch.terminal.any():
                 stay = self.discriminator.policy_reward(self.logits(Transitions.absorbing_pairs(1)))
                 tail = self.gamma / (1.0 - self.gamma) * float(stay[0])
                 rewards = rewards + np.float32(tail) * batch.terminal
+        if self.norm is not None:
+            rewards = self.norm(rewards)
         return rewards.astype(np.float32)
 
     def update(self, learner: Transitions) -> float:
@@ -169,14 +188,23 @@ class AdversarialReward:
         return loss_value
 
     def state(self) -> dict[str, np.ndarray]:
-        return {k: v.detach().numpy().copy() for k, v in self.discriminator.state_dict().items()}
+        """The discriminator's weights, and the reward normaliser's statistics with "-norm"."""
+        arrays = {k: v.detach().numpy().copy() for k, v in self.discriminator.state_dict().items()}
+        if self.norm is not None:
+            arrays[NORM_KEY] = self.norm.state()
+        return arrays
 
     def load_state(self, arrays: dict[str, np.ndarray]) -> None:
         _load_weights(self.discriminator, arrays)
+        if self.norm is not None:
+            if NORM_KEY not in arrays:
+                raise RunError(f"the saved discriminator has no {NORM_KEY}: it was not trained with -norm")
+            self.norm.load_state(arrays[NORM_KEY])
 
 
 def _load_weights(discriminator: torch.nn.Module, arrays: dict[str, np.ndarray]) -> None:
-    discriminator.load_state_dict({k: torch.as_tensor(v) for k, v in arrays.items()})
+    weights = {k: torch.as_tensor(v) for k, v in arrays.items() if k != NORM_KEY}
+    discriminator.load_state_dict(weights)
 
 
 def save_discriminator(run: RunDir, reward: AdversarialReward) -> None:

@@ -3,7 +3,8 @@
 ``ppo`` and ``dqn`` learn from the task's reward (the RL reference). ``gail`` and ``airl`` learn
 from the demonstrations: PPO with every reward replaced by a discriminator's
 (``nirl_mj.experiments.adversarial``); they never read the task's reward. ``gail-absorbing`` and
-``airl-absorbing`` are the same with an absorbing state (Kostrikov et al. 2019).
+``airl-absorbing`` are the same with an absorbing state (Kostrikov et al. 2019); ``gail-norm`` and
+``airl-norm`` with the policy's reward normalised by its running mean and variance.
 
 NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
 phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
@@ -36,9 +37,9 @@ from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
-ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing")
+ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", "airl-norm")
 """PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
-state."""
+state; "-norm": the reward normalised as it runs."""
 ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
@@ -139,7 +140,7 @@ def train_rl(
     venv, arenas = _environment(task, seed, len(record["train_seeds"]))
     callbacks = []
     if adversarial:
-        expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.discriminator_kind(algo)[1])
+        expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
         reward = adv.AdversarialReward(algo, SETTINGS[algo]["gamma"], expert, seed)
         if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
             reward.load_state(adv.read_discriminator(run))
