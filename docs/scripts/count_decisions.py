@@ -1,0 +1,72 @@
+"""How many environment decisions one training run of an IRL method of a compare experiment spends.
+
+The Stable-Baselines3 rows (PPO-reward, GAIL, AIRL) train for a fixed number of decisions
+(``method.NAME.steps``); NIRL and the other IRL rows train for a number of iterations, each driving
+``trajectories_per_episode`` rollouts, and drive validation episodes to pick their policy. To give
+the two kinds the same budget, this script retrains run R of METHOD exactly as the experiment does
+(same demonstrations, configuration and seed, in a temporary directory) and counts the decisions of
+every episode it drives: the training rollouts, and the validation and selection episodes.
+
+    python docs/scripts/count_decisions.py OUT [RUN ...] [--method NIRL] [--task tasks/table1.toml]
+    (OUT: the experiment's --out, for its demonstrations; default run 0)
+
+The count hooks ``run_episode`` where training and evaluation call it; nothing else changes, so the
+run trains as in the experiment (it is not kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import nirl_mj.experiments.evaluation as evaluation
+import nirl_mj.experiments.training as training
+from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.protocol import run_jobs
+from nirl_mj.learn.config import LearnerConfig
+
+
+def counting(module, counts: dict[str, int], key: str) -> None:
+    """Replaces ``module.run_episode`` by one that adds each episode's decisions to ``counts[key]``."""
+    original = module.run_episode
+
+    def run_episode(env, agent, seed, on_step=None):
+        trajectory = original(env, agent, seed, on_step)
+        counts[key] += len(trajectory.actions)
+        counts[key + " episodes"] += 1
+        return trajectory
+
+    module.run_episode = run_episode
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", type=Path, help="the compare experiment's --out (its demos.npz)")
+    parser.add_argument("runs", type=int, nargs="*", default=[0])
+    parser.add_argument("--method", default="NIRL")
+    parser.add_argument("--task", default="tasks/table1.toml")
+    args = parser.parse_args()
+    experiment = load_experiment(args.task)
+    jobs = run_jobs(experiment, args.out, args.out / "demos.npz")
+    counts: dict[str, int] = {}
+    counting(training, counts, "training")
+    counting(evaluation, counts, "validation")
+    for run in args.runs:
+        job = jobs[(args.method, run)]
+        if not job.method.trains or job.method.kind != "irl":
+            raise SystemExit(f"{args.method} is not an IRL method: its budget is its `steps`")
+        counts.update(
+            dict.fromkeys(["training", "training episodes", "validation", "validation episodes"], 0)
+        )
+        with tempfile.TemporaryDirectory() as tmp:
+            config = LearnerConfig.from_dict(job.config)
+            training.train(Path(tmp) / "run", job.task, job.demos_path, config, seed=job.seed)
+        total = counts["training"] + counts["validation"]
+        print(f"{args.method} run {run}: {total} decisions: {counts['training']} in "
+              f"{counts['training episodes']} training rollouts, {counts['validation']} in "
+              f"{counts['validation episodes']} validation and selection episodes")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
