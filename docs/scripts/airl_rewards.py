@@ -13,7 +13,8 @@ GAIL's reward is softplus of the logit, always positive. Prints, per run: the me
 decision on 20 of its own training-arena episodes (sampled actions, as trained) and on the
 experiment's demonstrations, the share of negative rewards, and the outcomes of those episodes.
 With an absorbing state ("-absorbing" algos), also the reward at s_a and what a terminal step gains
-from it, gamma / (1 - gamma) times that reward.
+from it, gamma / (1 - gamma) times that reward. With "-norm", also the running mean and standard
+deviation the rewards were normalised by at the end of training, and both means normalised.
 """
 
 from __future__ import annotations
@@ -74,6 +75,12 @@ def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
                 )
             tail = gamma / (1 - gamma) * at
             absorbing = f" | s_a: reward {at:+.2f} per step, {tail:+.1f} to a terminal step"
+        if reward.norm is not None:  # what PPO was paid at the end of training: (r - mean) / std
+            norm = reward.norm
+            scale = np.sqrt(norm.var + norm.eps)
+            absorbing += (f" | normalised (mean {norm.mean:+.2f}, std {scale:.2f}): own "
+                          f"{(own.mean() - norm.mean) / scale:+.2f}, demonstrations "
+                          f"{(expert.mean() - norm.mean) / scale:+.2f}")  # fmt: skip
         print(f"run {r}: own pairs: {own_part}, {np.mean(lengths):.0f} decisions per episode, {outcomes} "
               f"| demonstrations: {demo_part}{absorbing}")  # fmt: skip
 
