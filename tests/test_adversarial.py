@@ -87,9 +87,12 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
         GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
 
 
-@pytest.mark.parametrize("algo", ["gail", "gail-absorbing", "airl", "airl-absorbing", "airl-norm"])
+ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm", "airl-norm"]
+
+
+@pytest.mark.parametrize("algo", ALL_VARIANTS)
 def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_path, algo):
-    from nirl_mj.data.rundir import RunDir
+    from nirl_mj.data.rundir import RunDir, RunError
     from nirl_mj.experiments.adversarial import (
         AdversarialReward,
         Transitions,
@@ -112,6 +115,9 @@ def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_pat
         resumed = AdversarialReward(algo, 0.99, demos, seed=3)
         resumed.load_state(read_discriminator(RunDir(tmp_path)))
         np.testing.assert_array_equal(resumed.norm.state(), [1.5, 0.25, 2])
+        plain = AdversarialReward(algo.split("-")[0], 0.99, demos, seed=3)  # weights without statistics
+        with pytest.raises(RunError, match="not trained with -norm"):
+            resumed.load_state(plain.state())
 
 
 def test_running_norm_by_hand():
@@ -247,7 +253,7 @@ def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
         AdversarialReward("airl-lite", 0.75, demos, seed=0)
 
 
-def test_with_norm_each_reward_is_normalised_by_the_rewards_before_it():
+def test_with_norm_each_reward_is_normalised_by_the_rewards_so_far_itself_included():
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import DummyVecEnv
 
@@ -270,6 +276,22 @@ def test_with_norm_each_reward_is_normalised_by_the_rewards_before_it():
     mean = (2 * a + b) / 3
     third = (a - mean) / math.sqrt((2 * (a - mean) ** 2 + (b - mean) ** 2) / 3 + eps)
     np.testing.assert_allclose(rewards, [0.0, second, third], rtol=1e-5, atol=1e-7)
+
+
+def test_a_norm_run_resumes_with_the_statistics_of_every_reward_paid(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments.adversarial import DISCRIMINATOR_FILE, NORM_KEY
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+    from nirl_mj.experiments.rl import train_rl
+
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(OPEN, ExpertConfig("rule"), episodes=2, seed=0))
+    for steps, resume in ((1024, False), (2048, True)):
+        record = train_rl(tmp_path / "run", OPEN, "airl-norm", steps, seed=0, demos=demos, resume=resume)
+        with np.load(tmp_path / "run" / DISCRIMINATOR_FILE) as saved:
+            count = int(saved[NORM_KEY][2])
+        assert count == record["steps_done"] >= steps  # one reward per decision, across the resume
 
 
 @pytest.mark.parametrize("algo", ["gail", "airl", "airl-absorbing"])

@@ -67,22 +67,22 @@ def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
         success, collision = 100 * metrics["success_rate"], 100 * metrics["collision_rate"]
         outcomes = f"success {success:.0f} %, collision {collision:.0f} %"
         demo_part = f"mean reward {expert.mean():+.2f}, {100 * (expert < 0).mean():.0f} % negative"
-        absorbing = ""
+        extra = ""
         if reward.absorbing:
             with torch.no_grad():
                 at = float(
                     reward.discriminator.policy_reward(reward.logits(Transitions.absorbing_pairs(1)))[0]
                 )
             tail = gamma / (1 - gamma) * at
-            absorbing = f" | s_a: reward {at:+.2f} per step, {tail:+.1f} to a terminal step"
+            extra = f" | s_a: reward {at:+.2f} per step, {tail:+.1f} to a terminal step"
         if reward.norm is not None:  # what PPO was paid at the end of training: (r - mean) / std
             norm = reward.norm
             scale = np.sqrt(norm.var + norm.eps)
-            absorbing += (f" | normalised (mean {norm.mean:+.2f}, std {scale:.2f}): own "
+            extra += (f" | normalised (mean {norm.mean:+.2f}, std {scale:.2f}): own "
                           f"{(own.mean() - norm.mean) / scale:+.2f}, demonstrations "
                           f"{(expert.mean() - norm.mean) / scale:+.2f}")  # fmt: skip
         print(f"run {r}: own pairs: {own_part}, {np.mean(lengths):.0f} decisions per episode, {outcomes} "
-              f"| demonstrations: {demo_part}{absorbing}")  # fmt: skip
+              f"| demonstrations: {demo_part}{extra}")  # fmt: skip
 
 
 if __name__ == "__main__":

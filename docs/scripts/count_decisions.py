@@ -11,12 +11,14 @@ every episode it drives: the training rollouts, and the validation and selection
     (OUT: the experiment's --out, for its demonstrations; default run 0)
 
 The count hooks ``run_episode`` where training and evaluation call it; nothing else changes, so the
-run trains as in the experiment (it is not kept).
+run trains as in the experiment (it is not kept). Where OUT holds the run, the retrained run's
+policy selection must equal the stored one's, or the script stops: the count is of the same run.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 from pathlib import Path
 
@@ -54,14 +56,18 @@ def main() -> None:
     counting(evaluation, counts, "validation")
     for run in args.runs:
         job = jobs[(args.method, run)]
-        if not job.method.trains or job.method.kind != "irl":
-            raise SystemExit(f"{args.method} is not an IRL method: its budget is its `steps`")
+        if job.method.kind != "irl":
+            kind = job.method.kind
+            raise SystemExit(f"{args.method} is not an IRL method (kind {kind!r}): nothing to count")
         counts.update(
             dict.fromkeys(["training", "training episodes", "validation", "validation episodes"], 0)
         )
         with tempfile.TemporaryDirectory() as tmp:
             config = LearnerConfig.from_dict(job.config)
-            training.train(Path(tmp) / "run", job.task, job.demos_path, config, seed=job.seed)
+            record = training.train(Path(tmp) / "run", job.task, job.demos_path, config, seed=job.seed)
+        stored = Path(job.run_dir) / "run.json"
+        if stored.is_file() and json.loads(stored.read_text())["selection"] != record["selection"]:
+            raise SystemExit(f"run {run} retrained differently from {stored}: not the experiment's run")
         total = counts["training"] + counts["validation"]
         print(f"{args.method} run {run}: {total} decisions: {counts['training']} in "
               f"{counts['training episodes']} training rollouts, {counts['validation']} in "

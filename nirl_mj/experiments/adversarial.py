@@ -14,8 +14,9 @@ other rows; the demonstrations are the experiment's 30.
 (s_a, ., s_a) to the discriminator's data, and a terminal transition's reward gains the discounted
 stay in s_a, gamma / (1 - gamma) times the policy's reward there. A timeout is a truncation: no s_a.
 ``gail-norm`` and ``airl-norm`` hand PPO the same rewards normalised by the running mean and
-variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``), the imitation
-library's default (its scripts wrap every reward net in ``NormalizedRewardNet(RunningNorm)``).
+variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``): the imitation
+library's default for AIRL (its scripts wrap the reward net in ``NormalizedRewardNet(RunningNorm)``;
+its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond the library).
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -35,6 +36,7 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
+from nirl_mj.experiments.rl import ADVERSARIAL
 from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, make_discriminator
 from nirl_mj.learn.running_norm import RunningNorm
 
@@ -119,10 +121,9 @@ class Variant:
 
 def variant_of(algo: str) -> Variant:
     """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", True, False)."""
+    if algo not in ADVERSARIAL:
+        raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(ADVERSARIAL)}")
     kind, _, option = algo.partition("-")
-    if kind not in ("gail", "airl") or option not in ("", ABSORBING, NORMALISED):
-        raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: gail, airl, "
-                         "gail-absorbing, airl-absorbing, gail-norm, airl-norm")  # fmt: skip
     return Variant(kind, option == ABSORBING, option == NORMALISED)
 
 

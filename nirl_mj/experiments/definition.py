@@ -105,7 +105,7 @@ BUILTIN_METHODS = {
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
     "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
     "AIRL-absorbing": MethodSpec("AIRL-absorbing", "rl", algo="airl-absorbing", steps=50_000),
-    # the same with the policy's reward centred and scaled as it runs (the imitation library's default)
+    # the policy's reward centred and scaled as it runs (the imitation library's default for AIRL)
     "GAIL-norm": MethodSpec("GAIL-norm", "rl", algo="gail-norm", steps=50_000),
     "AIRL-norm": MethodSpec("AIRL-norm", "rl", algo="airl-norm", steps=50_000),
 }

@@ -1,10 +1,11 @@
 """A running normaliser of the rewards a policy learner is given (GAIL and AIRL's ``-norm`` option).
 
-The imitation library's scripts wrap every learned reward in ``NormalizedRewardNet(RunningNorm)``
-by default: each reward handed to the policy learner is centred and scaled by the mean and
-variance of all the rewards handed out so far, itself included. Centring removes the sign of a discriminator's
-reward, and with it the incentive to end episodes early (a reward negative on average) or to
-drag them out (positive on average) that Kostrikov et al. (2019) call the termination bias.
+The imitation library's scripts wrap the reward net in ``NormalizedRewardNet(RunningNorm)`` by
+default, which reaches the policy's reward in its AIRL (its GAIL pays ``-log sigmoid`` of the
+unnormalised logits): each reward handed to the policy learner is centred and scaled by the mean
+and variance of all the rewards handed out so far, itself included. Centring the reward on its
+running mean weakens the incentive to end episodes early (a reward negative on average) or to drag
+them out (positive on average) that Kostrikov et al. (2019) call the termination bias.
 """
 
 from __future__ import annotations
