@@ -26,7 +26,7 @@ from nirl_mj.experiments.definition import (
     load_experiment,
 )
 from nirl_mj.experiments.executors import Cell, CellStore, Executor, ExecutorError, run_cells
-from nirl_mj.experiments.stats import summarise_runs, t_interval, wilson
+from nirl_mj.experiments.stats import paired, summarise_runs, t_interval, wilson
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -193,6 +193,16 @@ def test_intervals_match_hand_computation():
     summary = (s["avg"], s["best"], s["worst"], s["runs"], s["tests"])
     assert summary == pytest.approx((0.7333, 0.9, 0.6, 3, 30), abs=1e-4)
     assert summarise_runs(rows[:1])["ci"] == [None, None]  # standard JSON, no NaN
+
+
+def test_paired_difference_by_hand():
+    # differences 0.1, 0.3, -0.1, 0.0: mean 0.075, sd sqrt(0.0875 / 3) = 0.17078, SE 0.08539
+    p = paired([0.9, 0.8, 0.5, 0.6], [0.8, 0.5, 0.6, 0.6])
+    assert (p["runs"], p["better"], p["worse"], p["equal"]) == (4, 2, 1, 1)
+    assert (p["mean"], p["se"]) == pytest.approx((0.075, 0.08539), abs=1e-5)
+    half = 3.1824 * 0.08539  # t(0.975, 3)
+    assert p["ci"] == pytest.approx([0.075 - half, 0.075 + half], abs=1e-4)  # negative bound kept
+    assert paired([0.5], [0.2])["se"] is None and paired([], [])["runs"] == 0
 
 
 # -- executors --------------------------------------------------------------------------------------
@@ -393,6 +403,13 @@ worst = 43
     assert last["methods"]["rule"]["avg"] > last["methods"]["forward"]["avg"]
     table = (out / "table.md").read_text()
     assert "| AL | 2 |" in table and "66 / 82 / 43 |" in table
+    # every run's success, and the first method minus each other paired by run, from the cells
+    cells = {p.stem: json.loads(p.read_text())["result"]["success_rate"] for p in (out / "cells").iterdir()}
+    first, al = TABLE1_ROWS[0], [cells[f"AL-run{r:03d}"] for r in (0, 1)]
+    assert f"| AL | {round(100 * al[0])} | {round(100 * al[1])} |" in table
+    diff = sum(cells[f"{first}-run{r:03d}"] - cells[f"AL-run{r:03d}"] for r in (0, 1)) / 2
+    assert f"**{first} minus each method, paired by run**" in table
+    assert f"| AL | 2 | {100 * diff:+.1f} (SE " in table
     assert (out / "table.csv").read_text().startswith("method,runs,failed,tests,success_avg,success_ci_low")
     assert (out / "table.png").stat().st_size > 10_000
     # The runs of one seed share their test arenas and the learners' runs are on disk.

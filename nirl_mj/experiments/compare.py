@@ -6,7 +6,9 @@ the experiment's demonstrations (trainable methods; resumable in
 of run r, the same for every method (``nirl_mj.experiments.protocol``). Per method: average
 / best / worst success over the runs with a 95 % Student-t interval of the
 average (``nirl_mj.experiments.stats``), mean collision, timeout and physics-error rates,
-SPL. Outputs in OUT:
+SPL; every run's success; and the first method listed minus each other, paired by run (the runs
+of one seed share their training seed and test arenas, so the pairing removes the arenas' luck).
+Outputs in OUT:
 
 - ``table.md``, ``table.csv``, ``table.png`` (bar chart next to the paper's);
 - ``results.json``: the summaries, every cell's metrics, failed cells;
@@ -34,7 +36,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     prepare,
 )
-from nirl_mj.experiments.stats import summarise_runs
+from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
 
@@ -87,15 +89,25 @@ def run_compare(
 
 
 def summarise(experiment: Experiment, results: dict) -> dict:
-    """Per method: ``stats.summarise_runs`` over its finished runs, failed runs, the paper's row."""
+    """Per method: ``stats.summarise_runs`` over its finished runs, failed runs, the paper's row,
+    each run's success by run index (``by_run``), and the first method minus it, paired over the
+    runs both finished (``paired``; not for the first method itself)."""
     methods = {}
     for method in experiment.methods:
-        rows = [results[i] for r in range(experiment.runs) if (i := cell_id(method.name, r)) in results]
+        by_run = {r: results[i]["success_rate"] for r in range(experiment.runs)
+                  if (i := cell_id(method.name, r)) in results}  # fmt: skip
+        rows = [results[cell_id(method.name, r)] for r in by_run]
         methods[method.name] = {
             **summarise_runs(rows),
             "failed": experiment.runs - len(rows),  # failed, or unfinished in a --report
             "paper": {k: v / 100 for k, v in experiment.paper.get(method.name, {}).items()} or None,
+            "by_run": by_run,
         }
+    reference = methods[experiment.methods[0].name]["by_run"]
+    for method in experiment.methods[1:]:
+        mine = methods[method.name]["by_run"]
+        both = [r for r in reference if r in mine]
+        methods[method.name]["paired"] = paired([reference[r] for r in both], [mine[r] for r in both])
     return {
         "experiment": experiment.name,
         "description": experiment.description,
@@ -145,6 +157,41 @@ def markdown_table(summary: dict) -> str:
             f"| {_pct(s['collision'])} | {_pct(s['timeout'])} | {s['spl']:.2f} | {paper_text} |"
         )
     return "\n".join(lines)
+
+
+def runs_section(summary: dict) -> str:
+    """Every run's success (percent), one row per method ("-": not finished or failed)."""
+    runs = summary["runs"]
+    lines = [f"| method | {' | '.join(str(r) for r in range(runs))} |", "|---|" + "---|" * runs]
+    for name, s in summary["methods"].items():
+        by_run = s.get("by_run", {})
+        lines.append(f"| {name} | {' | '.join(_pct(by_run.get(r), 0) for r in range(runs))} |")
+    return (
+        "\n**Success per run** (percent; run r of every method shares its test arenas):\n\n"
+        + "\n".join(lines)
+        + "\n"
+    )
+
+
+def paired_section(summary: dict) -> str:
+    """The first method minus each other, paired by run (empty with one method)."""
+    names = list(summary["methods"])
+    rows = [(n, s["paired"]) for n, s in summary["methods"].items() if s.get("paired", {}).get("runs")]
+    if not rows:
+        return ""
+    lines = [
+        "| against | runs | mean difference (SE) [95 % CI] | better / worse / equal |",
+        "|---|---|---|---|",
+    ]
+    for name, p in rows:
+        se = f" (SE {_pct(p['se'])})" if p["se"] is not None else ""
+        ci = f" [{_pct(p['ci'][0])}, {_pct(p['ci'][1])}]" if p["ci"][0] is not None else ""
+        mean = f"{100 * p['mean']:+.1f}"
+        lines.append(
+            f"| {name} | {p['runs']} | {mean}{se}{ci} | {p['better']} / {p['worse']} / {p['equal']} |"
+        )
+    return (f"\n**{names[0]} minus each method, paired by run** (points; over the runs both finished; "
+            "95 % CI: Student t over the runs' differences):\n\n" + "\n".join(lines) + "\n")  # fmt: skip
 
 
 CSV_COLUMNS = ("method", "runs", "failed", "tests", "success_avg", "success_ci_low", "success_ci_high",
@@ -235,7 +282,7 @@ demonstrations ({experiment.expert} expert) and tested on {experiment.tests} hel
 {markdown_table(summary)}
 
 ![success per method](table.png)
-{failed_section(summary)}"""
+{runs_section(summary)}{paired_section(summary)}{failed_section(summary)}"""
     write_text(out / "table.md", text)
     write_text(out / "table.csv", csv_table(summary))
     write_text(out / "results.json", json.dumps({**summary, "cells": results}, indent=1))

@@ -77,5 +77,24 @@ def summarise_runs(rows: Sequence[dict]) -> dict:
     }
 
 
+def paired(reference: Sequence[float], other: Sequence[float]) -> dict:
+    """The reference's success minus the other's, paired by run (the same training seed and test
+    arenas): mean difference, its standard error and 95 % t interval (fractions, None with fewer than
+    2 runs), and the runs the reference is better / worse / equal in."""
+    d = np.asarray(reference, dtype=np.float64) - np.asarray(other, dtype=np.float64)
+    if not len(d):
+        return {"runs": 0}
+    se = float(d.std(ddof=1) / math.sqrt(len(d))) if len(d) > 1 else math.nan
+    return {
+        "runs": len(d),
+        "mean": float(d.mean()),
+        "se": _finite(se),
+        "ci": [_finite(v) for v in t_interval(d, low=-1.0, high=1.0)],
+        "better": int((d > 0).sum()),
+        "worse": int((d < 0).sum()),
+        "equal": int((d == 0).sum()),
+    }
+
+
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
