@@ -436,6 +436,11 @@ worst = 43
     assert not (out / "cells" / "AL-run001.json").exists()
     table = (out / "table.md").read_text()
     assert "| AL | 1 (1 missing) |" in table and "Partial report" in table
+    # --runs 1: the table of run 0 alone, which every row finished
+    assert main([*quick, "--report", "--runs", "1", "--json"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert {(m["runs"], m["failed"]) for m in last["methods"].values()} == {(1, 0)}
+    assert "Partial report" not in (out / "table.md").read_text()
     assert (
         main(
             ["compare", "--task", str(spec), "--quick", "--report", "--out", str(tmp_path / "new"), "--quiet"]

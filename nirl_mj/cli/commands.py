@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import shutil
@@ -400,6 +401,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     """``compare`` and ``sweep``: run (or resume) the experiment with a progress bar over its cells."""
     run, table, json_line = _EXPERIMENTS[args.command]
     experiment = load_experiment(args.task, args.quick, args.command)
+    if args.runs is not None:
+        experiment = dataclasses.replace(experiment, runs=args.runs)
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
                           getattr(args, "reuse", None))  # fmt: skip

@@ -68,6 +68,9 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
     p.add_argument("--task", default=default, metavar="SPEC",
                    help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
     p.add_argument("--quick", action="store_true", help="the spec's [quick] values: a smoke run")
+    p.add_argument("--runs", type=_positive_int, default=None, metavar="N",
+                   help="runs 0..N-1 instead of the spec's `runs`: compute or extend to N, or with "
+                   "--report the table of the first N (not part of an experiment's identity)")  # fmt: skip
     p.add_argument(
         "--out",
         default=None,
