@@ -120,6 +120,14 @@ def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_pat
             resumed.load_state(plain.state())
 
 
+def test_the_adversarial_algorithms_are_the_same_list_everywhere():
+    from nirl_mj.experiments.adversarial import algorithms, variant_of
+    from nirl_mj.experiments.rl import ADVERSARIAL
+
+    assert sorted(algorithms()) == sorted(ADVERSARIAL) == sorted(ALL_VARIANTS)
+    assert [variant_of(a).kind for a in ADVERSARIAL] == ["gail", "airl"] * 3
+
+
 def test_running_norm_by_hand():
     from nirl_mj.learn.running_norm import RunningNorm
 

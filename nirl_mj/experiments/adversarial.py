@@ -36,7 +36,6 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
-from nirl_mj.experiments.rl import ADVERSARIAL
 from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, make_discriminator
 from nirl_mj.learn.running_norm import RunningNorm
 
@@ -44,6 +43,8 @@ DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
 NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
+KINDS = ("gail", "airl")
+OPTIONS = ("", ABSORBING, NORMALISED)
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -119,11 +120,17 @@ class Variant:
     normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
 
 
+def algorithms() -> list[str]:
+    """Every adversarial algorithm's name ("gail", "airl", then each with each option);
+    ``experiments.rl.ADVERSARIAL`` lists the same without importing torch (a test checks it)."""
+    return [kind + (f"-{option}" if option else "") for option in OPTIONS for kind in KINDS]
+
+
 def variant_of(algo: str) -> Variant:
     """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", True, False)."""
-    if algo not in ADVERSARIAL:
-        raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(ADVERSARIAL)}")
     kind, _, option = algo.partition("-")
+    if kind not in KINDS or option not in OPTIONS:
+        raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(algorithms())}")
     return Variant(kind, option == ABSORBING, option == NORMALISED)
 
 
