@@ -39,7 +39,7 @@ def test_gail_logits_pick_the_action_and_reward_is_minus_log_one_minus_d():
     logits = disc.logits(x, torch.tensor([1, 5]))
     np.testing.assert_allclose(logits.detach().numpy(), [1.0, math.log(3.0)], rtol=1e-6)
     # D = 3/4 at logit ln 3: -ln(1 - 3/4) = ln 4
-    assert float(disc.policy_reward(logits)[1]) == pytest.approx(math.log(4.0), rel=1e-6)
+    assert float(disc.policy_reward(logits.detach())[1]) == pytest.approx(math.log(4.0), rel=1e-6)
 
 
 def test_airl_f_shaping_terminal_and_logit_by_hand():
