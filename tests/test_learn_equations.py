@@ -200,7 +200,7 @@ def test_explicit_backpropagation_equals_autograd():
     g1, g2 = torch.autograd.grad(cost, (net.W1, net.W2))
     weights = (net.W1.detach().numpy(), net.W2.detach().numpy())
     value, h1, h2 = _gradients(*weights, *_as_arrays(phi, actions, targets), 0.3)
-    assert value == pytest.approx(float(cost), rel=1e-13)
+    assert value == pytest.approx(float(cost.detach()), rel=1e-13)
     np.testing.assert_allclose(h1, g1.numpy(), rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(h2, g2.numpy(), rtol=1e-12, atol=1e-15)
 
