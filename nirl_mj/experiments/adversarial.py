@@ -74,7 +74,7 @@ class Transitions:
     @staticmethod
     def absorbing_pairs(count: int) -> Transitions:
         """``count`` pairs (s_a, ., s_a)."""
-        zeros = np.zeros((count, 16), np.float32)
+        zeros = np.zeros((count, N_INPUTS), np.float32)
         ones = np.ones(count, bool)
         return Transitions(zeros, np.zeros(count, np.int64), zeros, ones, ones)
 
