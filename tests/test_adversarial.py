@@ -8,9 +8,11 @@ import torch
 from helpers import OPEN, progress
 
 from nirl_mj.learn.adversarial import (
+    PENALTY_WEIGHT,
     AirlDiscriminator,
     GailDiscriminator,
     discriminator_loss,
+    gradient_penalty,
     make_discriminator,
 )
 
@@ -87,7 +89,8 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
         GailDiscriminator().logits(torch.zeros((2, 16)), torch.tensor([0, 0]), absorbing=absorbing)
 
 
-ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm", "airl-norm"]
+ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm", "airl-norm",
+                "gail-gp", "airl-gp", "airl-state"]  # fmt: skip
 
 
 @pytest.mark.parametrize("algo", ALL_VARIANTS)
@@ -105,6 +108,7 @@ def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_pat
     save_discriminator(RunDir(tmp_path), reward)
     loaded = load_discriminator(tmp_path, algo.split("-")[0], 0.99)
     assert loaded.inputs.absorbing == algo.endswith("absorbing")
+    assert getattr(loaded, "state_only", False) == algo.endswith("state")
     for name, value in reward.discriminator.state_dict().items():
         assert torch.equal(loaded.state_dict()[name], value)
     if algo.endswith("norm"):  # a resume goes on with the reward normaliser's statistics
@@ -125,7 +129,84 @@ def test_the_adversarial_algorithms_are_the_same_list_everywhere():
     from nirl_mj.experiments.rl import ADVERSARIAL
 
     assert sorted(algorithms()) == sorted(ADVERSARIAL) == sorted(ALL_VARIANTS)
-    assert [variant_of(a).kind for a in ADVERSARIAL] == ["gail", "airl"] * 3
+    assert [variant_of(a).kind for a in ADVERSARIAL] == [a.split("-")[0] for a in ADVERSARIAL]
+    assert variant_of("airl-state").state_only and variant_of("gail-gp").penalised
+    for wrong in ("gail-state", "airl-gp-norm", "wgan"):
+        with pytest.raises(ValueError, match="accepted: gail, airl, gail-absorbing"):
+            variant_of(wrong)
+    with pytest.raises(ValueError, match="state-only reward is AIRL's"):
+        make_discriminator("gail", 0.9, state_only=True)
+
+
+def test_airl_state_only_reward_by_hand():
+    disc = AirlDiscriminator(gamma=0.5, state_only=True)
+    assert disc.g[-1].out_features == 1
+    constant_heads(disc, g=[2.0], h=[4.0])
+    x = torch.zeros((3, 16))
+    # f = g(s) + gamma h(s') - h(s), whatever the action: 2 + 2 - 4 = 0; terminal: 2 - 4 = -2
+    f = disc.f(x, torch.tensor([0, 3, 5]), x, torch.tensor([False, False, True]))
+    np.testing.assert_allclose(f.detach().numpy(), [0.0, 0.0, -2.0], atol=1e-6)
+    # one value for every action
+    np.testing.assert_allclose(disc.reward(np.zeros((2, 16))), np.full((2, 6), 2.0))
+
+
+def test_gradient_penalty_by_hand():
+    w = torch.arange(16, dtype=torch.float32)
+    x = torch.ones((2, 16))
+    # l = x . w + 3 x'_0 + a constant: its gradient is (w, 3 e_0) in every row, whatever x
+    penalty = gradient_penalty(lambda x, x_next: x @ w + 3 * x_next[:, 0] + 7.0, x, 2 * x)
+    expected = PENALTY_WEIGHT / 2 * (float(w @ w) + 9.0)
+    assert float(penalty.detach()) == pytest.approx(expected)
+    # a logit that ignores x' (GAIL's): only x's gradient
+    assert float(gradient_penalty(lambda x, x_next: (x**2).sum(dim=1), x, x).detach()) == pytest.approx(
+        PENALTY_WEIGHT / 2 * 4 * 16
+    )  # d/dx sum x^2 = 2x = 2 in 16 inputs: |.|^2 = 64
+
+
+@pytest.mark.parametrize("algo", ["gail-gp", "airl-gp"])
+def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
+    """The penalty of a real discriminator against central finite differences of its logits."""
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+
+    rng = np.random.default_rng(1)
+    x, x_next = rng.random((3, 16)).astype(np.float32), rng.random((3, 16)).astype(np.float32)
+    expert = Transitions.of(x, np.array([0, 2, 5]), x_next, np.array([False, True, False]))
+    reward = AdversarialReward(algo, 0.9, expert, seed=2)
+    a, terminal = torch.tensor([0, 2, 5]), torch.tensor([False, True, False])
+
+    def logits(x, x_next):
+        return reward.discriminator.logits(x, a, x_next, terminal, torch.zeros(3)).double()
+
+    squares = np.zeros(3)
+    step = 1e-2
+    for which in (0, 1):
+        for i in range(16):
+            up = [torch.as_tensor(x.copy()), torch.as_tensor(x_next.copy())]
+            down = [torch.as_tensor(x.copy()), torch.as_tensor(x_next.copy())]
+            up[which][:, i] += step
+            down[which][:, i] -= step
+            with torch.no_grad():
+                squares += ((logits(*up) - logits(*down)).numpy() / (2 * step)) ** 2
+    expected = PENALTY_WEIGHT / 2 * squares.mean()
+    assert float(reward.penalty(expert).detach()) == pytest.approx(expected, rel=2e-3)
+
+
+def test_the_penalty_flattens_the_discriminator_where_the_expert_is():
+    """Trained on the same separable pairs, a penalised GAIL discriminator's logit varies far less
+    around the expert's states than an unpenalised one's (the penalty is not a no-op)."""
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+
+    rng = np.random.default_rng(0)
+    a, x_next, terminal = np.zeros(256, int), np.zeros((256, 16)), np.zeros(256, bool)
+    expert = Transitions.of(rng.random((256, 16)) * 0.5, a, x_next, terminal)
+    learner = Transitions.of(rng.random((256, 16)) * 0.5 + 0.5, a, x_next, terminal)
+    norms = {}
+    for algo in ("gail", "gail-gp"):
+        reward = AdversarialReward(algo, 0.9, expert, seed=0)
+        for _ in range(30):
+            reward.update(learner)
+        norms[algo] = float(reward.penalty(expert).detach())
+    assert norms["gail-gp"] < 0.25 * norms["gail"]
 
 
 def test_running_norm_by_hand():

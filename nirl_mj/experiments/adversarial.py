@@ -17,6 +17,9 @@ stay in s_a, gamma / (1 - gamma) times the policy's reward there. A timeout is a
 variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``): the imitation
 library's default for AIRL (its scripts wrap the reward net in ``NormalizedRewardNet(RunningNorm)``;
 its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond the library).
+``gail-gp`` and ``airl-gp`` add a gradient penalty on the expert's pairs to the discriminator's loss
+(R1, ``nirl_mj.learn.adversarial.gradient_penalty``); ``airl-state`` learns a state-only g(s), Fu et
+al.'s disentangled reward.
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -36,15 +39,17 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
-from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, make_discriminator
+from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, gradient_penalty, make_discriminator
 from nirl_mj.learn.running_norm import RunningNorm
 
 DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
+PENALISED = "gp"  # the suffix of an algorithm whose discriminator has a gradient penalty
+STATE_ONLY = "state"  # the suffix of AIRL with a state-only g(s)
 NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
 KINDS = ("gail", "airl")
-OPTIONS = ("", ABSORBING, NORMALISED)
+OPTIONS = ("", ABSORBING, NORMALISED, PENALISED, STATE_ONLY)
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -118,20 +123,24 @@ class Variant:
     kind: str
     absorbing: bool  # "-absorbing": Kostrikov et al.'s absorbing state
     normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
+    penalised: bool = False  # "-gp": R1 gradient penalty on the expert's pairs
+    state_only: bool = False  # "-state" (AIRL only): g(s), Fu et al.'s disentangled reward
 
 
 def algorithms() -> list[str]:
-    """Every adversarial algorithm's name ("gail", "airl", then each with each option);
-    ``experiments.rl.ADVERSARIAL`` lists the same without importing torch (a test checks it)."""
-    return [kind + (f"-{option}" if option else "") for option in OPTIONS for kind in KINDS]
+    """Every adversarial algorithm's name ("gail", "airl", then each with each option it takes;
+    "-state" is AIRL's only); ``experiments.rl.ADVERSARIAL`` lists the same without importing torch
+    (a test checks it)."""
+    return [kind + (f"-{option}" if option else "") for option in OPTIONS for kind in KINDS
+            if not (option == STATE_ONLY and kind != "airl")]  # fmt: skip
 
 
 def variant_of(algo: str) -> Variant:
     """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", True, False)."""
-    kind, _, option = algo.partition("-")
-    if kind not in KINDS or option not in OPTIONS:
+    if algo not in algorithms():
         raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(algorithms())}")
-    return Variant(kind, option == ABSORBING, option == NORMALISED)
+    kind, _, option = algo.partition("-")
+    return Variant(kind, option == ABSORBING, option == NORMALISED, option == PENALISED, option == STATE_ONLY)
 
 
 def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -145,14 +154,14 @@ def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
 
 class AdversarialReward:
     """The discriminator, its optimiser and the expert's pairs; rewards and updates.
-    ``algo``: "gail" or "airl", alone or with "-absorbing" or "-norm" (:func:`variant_of`)."""
+    ``algo``: "gail" or "airl", alone or with one option (:func:`variant_of`)."""
 
     def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
         variant = variant_of(algo)
-        self.absorbing = variant.absorbing
+        self.absorbing, self.penalised = variant.absorbing, variant.penalised
         self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
-        self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing)
+        self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing, variant.state_only)
         self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
         self.demos = demos
         self.rng = np.random.default_rng(seed)
@@ -178,6 +187,13 @@ class AdversarialReward:
             rewards = self.norm(rewards)
         return rewards.astype(np.float32)
 
+    def penalty(self, expert: Transitions) -> torch.Tensor:
+        """The gradient penalty on the expert's pairs (the logits' ln pi is a constant in x)."""
+        x, a, x_next, terminal, absorbing = _tensors(expert)
+        zeros = torch.zeros(len(a))
+        logits = self.discriminator.logits
+        return gradient_penalty(lambda x, x_next: logits(x, a, x_next, terminal, zeros, absorbing), x, x_next)
+
     def update(self, learner: Transitions) -> float:
         """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
         returns the last minibatch's loss."""
@@ -189,6 +205,8 @@ class AdversarialReward:
                 mine = learner.take(order[start : start + size])
                 theirs = self.demos.take(self.rng.integers(0, len(self.demos), len(mine)))
                 loss = discriminator_loss(self.logits(theirs), self.logits(mine))
+                if self.penalised:
+                    loss = loss + self.penalty(theirs)
                 self.optimiser.zero_grad()
                 loss.backward()
                 self.optimiser.step()
@@ -230,10 +248,12 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
 
 def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
     """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
-    an absorbing state if it was trained with one."""
+    an absorbing state or a state-only g(s) if it was trained with one."""
     arrays = read_discriminator(RunDir(run_dir))
     first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
-    discriminator = make_discriminator(kind, gamma, absorbing=first.shape[1] == N_INPUTS + 1)
+    state_only = kind == "airl" and arrays["g.4.weight"].shape[0] == 1  # (outputs, hidden)
+    absorbing = first.shape[1] == N_INPUTS + 1
+    discriminator = make_discriminator(kind, gamma, absorbing=absorbing, state_only=state_only)
     _load_weights(discriminator, arrays)
     return discriminator
 

@@ -108,6 +108,11 @@ BUILTIN_METHODS = {
     # the policy's reward centred and scaled as it runs (the imitation library's default for AIRL)
     "GAIL-norm": MethodSpec("GAIL-norm", "rl", algo="gail-norm", steps=50_000),
     "AIRL-norm": MethodSpec("AIRL-norm", "rl", algo="airl-norm", steps=50_000),
+    # the discriminator regularised by a gradient penalty on the expert's pairs (R1)
+    "GAIL-gp": MethodSpec("GAIL-gp", "rl", algo="gail-gp", steps=50_000),
+    "AIRL-gp": MethodSpec("AIRL-gp", "rl", algo="airl-gp", steps=50_000),
+    # AIRL's reward as a state-only g(s), Fu et al.'s disentangled form
+    "AIRL-state": MethodSpec("AIRL-state", "rl", algo="airl-state", steps=50_000),
 }
 """The methods an experiment may list without defining them."""
 

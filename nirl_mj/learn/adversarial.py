@@ -28,10 +28,23 @@ ln pi = 0 at s_a, which offers one action (a uniform pi over six would pay ln 6 
 having ended). Without the option h(s') = 0 after a terminal transition and s_a is never classified:
 Fu et al.'s AIRL, unchanged.
 
+**State-only reward** (``state_only=True``, AIRL only): g(s) with one output, Fu et al.'s
+disentangled form (their section 5, eq. 4 with g = g(s)); ``reward(x)`` then gives every action the
+same g(s), so a reward map is flat across actions.
+
+**Gradient penalty** (:func:`gradient_penalty`): the zero-centred R1 penalty of Mescheder, Geiger &
+Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs (for AIRL the gradient
+in both s and s'), added to the logistic loss. Kostrikov et al. (2019) penalise the discriminator
+too, with Gulrajani et al.'s one-centred penalty on points interpolated between expert and learner
+pairs; that needs an action to interpolate, and ours is one of six, so the zero-centred penalty on
+the expert's own pairs is used here, with their weight lambda = 10.
+
 Units: logits and rewards are nats; gamma is the policy learner's discount.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import torch
@@ -104,19 +117,23 @@ class AirlDiscriminator(torch.nn.Module):
 
     kind = "airl"
 
-    def __init__(self, gamma: float, hidden: int = 64, seed: int = 0, absorbing: bool = False) -> None:
+    def __init__(
+        self, gamma: float, hidden: int = 64, seed: int = 0, absorbing: bool = False, state_only: bool = False
+    ) -> None:
         super().__init__()
         generator = torch.Generator().manual_seed(seed)
         self.gamma = float(gamma)
         self.inputs = Inputs(absorbing)
-        self.g = mlp(self.inputs.width, N_ACTIONS, hidden, generator)
+        self.state_only = state_only
+        self.g = mlp(self.inputs.width, 1 if state_only else N_ACTIONS, hidden, generator)
         self.h = mlp(self.inputs.width, 1, hidden, generator)
 
     def f(self, x, actions, x_next, terminal, absorbing=None) -> torch.Tensor:
         """f(s, a, s') (N,); ``terminal`` (N,) bool: s' is s_a, whose h is 0 without an absorbing
         state; ``absorbing`` (N,) bool marks the pairs (s_a, ., s_a)."""
         inputs = self.inputs(x, absorbing)
-        g = self.g(inputs).gather(1, actions.long()[:, None])[:, 0]
+        g = self.g(inputs)
+        g = g[:, 0] if self.state_only else g.gather(1, actions.long()[:, None])[:, 0]
         if self.inputs.absorbing:
             h_next = torch.where(terminal.bool(), self.h(self.inputs.absorbing_state())[0, 0],
                                  self.h(self.inputs(x_next))[:, 0])  # fmt: skip
@@ -136,9 +153,11 @@ class AirlDiscriminator(torch.nn.Module):
         return logits
 
     def reward(self, x: np.ndarray) -> np.ndarray:
-        """The learned reward g(s, .) (N, 6) in the scaled states x (N, 16)."""
+        """The learned reward g(s, .) (N, 6) in the scaled states x (N, 16); a state-only g(s) is
+        the same for every action."""
         with torch.no_grad():
-            return self.g(self.inputs(torch.as_tensor(np.asarray(x, dtype=np.float32)))).numpy()
+            g = self.g(self.inputs(torch.as_tensor(np.asarray(x, dtype=np.float32)))).numpy()
+        return np.repeat(g, N_ACTIONS, axis=1) if self.state_only else g
 
 
 def discriminator_loss(expert_logits: torch.Tensor, learner_logits: torch.Tensor) -> torch.Tensor:
@@ -147,12 +166,31 @@ def discriminator_loss(expert_logits: torch.Tensor, learner_logits: torch.Tensor
     return functional.softplus(-expert_logits).mean() + functional.softplus(learner_logits).mean()
 
 
+PENALTY_WEIGHT = 10.0
+"""lambda of :func:`gradient_penalty` (Kostrikov et al. 2019's weight)."""
+
+
+def gradient_penalty(
+    logits: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], x: torch.Tensor, x_next: torch.Tensor
+) -> torch.Tensor:
+    """R1: (PENALTY_WEIGHT / 2) mean_i ||d l_i / d(x_i, x'_i)||^2 over a batch of expert pairs.
+    ``logits(x, x_next)`` (N,) must read the given tensors (a term free of them, such as AIRL's
+    ln pi, has no gradient); x and x_next (N, 16). The result keeps its graph, for backward()."""
+    x, x_next = x.detach().requires_grad_(True), x_next.detach().requires_grad_(True)
+    grads = torch.autograd.grad(logits(x, x_next).sum(), [x, x_next], create_graph=True, allow_unused=True)
+    squares = sum((g**2).sum(dim=1) for g in grads if g is not None)
+    return PENALTY_WEIGHT / 2 * torch.as_tensor(squares).mean()
+
+
 def make_discriminator(
-    kind: str, gamma: float, seed: int = 0, absorbing: bool = False
+    kind: str, gamma: float, seed: int = 0, absorbing: bool = False, state_only: bool = False
 ) -> GailDiscriminator | AirlDiscriminator:
-    """The discriminator of ``kind`` ("gail" or "airl"), with an absorbing state if asked."""
+    """The discriminator of ``kind`` ("gail" or "airl"), with an absorbing state if asked, and for
+    AIRL a state-only g(s) if asked."""
     if kind == "gail":
+        if state_only:
+            raise ValueError("a state-only reward is AIRL's: GAIL's discriminator reads the action")
         return GailDiscriminator(seed=seed, absorbing=absorbing)
     if kind == "airl":
-        return AirlDiscriminator(gamma, seed=seed, absorbing=absorbing)
+        return AirlDiscriminator(gamma, seed=seed, absorbing=absorbing, state_only=state_only)
     raise ValueError(f"unknown discriminator {kind!r}: accepted: gail, airl")
