@@ -18,8 +18,8 @@ variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``): 
 library's default for AIRL (its scripts wrap the reward net in ``NormalizedRewardNet(RunningNorm)``;
 its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond the library).
 ``gail-gp`` and ``airl-gp`` add a gradient penalty on the expert's pairs to the discriminator's loss
-(R1, ``nirl_mj.learn.adversarial.gradient_penalty``); ``airl-state`` learns a state-only g(s), Fu et
-al.'s disentangled reward.
+(R1, ``nirl_mj.learn.adversarial.gradient_penalty``), weight 10; ``-gp1`` and ``-gp0.1`` weigh it
+1 and 0.1. ``airl-state`` learns a state-only g(s), Fu et al.'s disentangled reward.
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -39,17 +39,24 @@ import torch
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
-from nirl_mj.learn.adversarial import N_INPUTS, discriminator_loss, gradient_penalty, make_discriminator
+from nirl_mj.learn.adversarial import (
+    N_INPUTS,
+    PENALTY_WEIGHT,
+    discriminator_loss,
+    gradient_penalty,
+    make_discriminator,
+)
 from nirl_mj.learn.running_norm import RunningNorm
 
 DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
-PENALISED = "gp"  # the suffix of an algorithm whose discriminator has a gradient penalty
+PENALTIES = {"gp": 10.0, "gp1": 1.0, "gp0.1": 0.1}
+"""The suffixes of an algorithm whose discriminator has a gradient penalty, and its weight lambda."""
 STATE_ONLY = "state"  # the suffix of AIRL with a state-only g(s)
 NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
 KINDS = ("gail", "airl")
-OPTIONS = ("", ABSORBING, NORMALISED, PENALISED, STATE_ONLY)
+OPTIONS = ("", ABSORBING, NORMALISED, *PENALTIES, STATE_ONLY)
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -123,7 +130,7 @@ class Variant:
     kind: str
     absorbing: bool  # "-absorbing": Kostrikov et al.'s absorbing state
     normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
-    penalised: bool = False  # "-gp": R1 gradient penalty on the expert's pairs
+    penalty: float = 0.0  # "-gp", "-gp1", "-gp0.1": lambda of an R1 gradient penalty on the expert's pairs
     state_only: bool = False  # "-state" (AIRL only): g(s), Fu et al.'s disentangled reward
 
 
@@ -140,7 +147,9 @@ def variant_of(algo: str) -> Variant:
     if algo not in algorithms():
         raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(algorithms())}")
     kind, _, option = algo.partition("-")
-    return Variant(kind, option == ABSORBING, option == NORMALISED, option == PENALISED, option == STATE_ONLY)
+    return Variant(
+        kind, option == ABSORBING, option == NORMALISED, PENALTIES.get(option, 0.0), option == STATE_ONLY
+    )
 
 
 def log_pi(policy: Any, x: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -158,7 +167,7 @@ class AdversarialReward:
 
     def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
         variant = variant_of(algo)
-        self.absorbing, self.penalised = variant.absorbing, variant.penalised
+        self.absorbing, self.penalty_weight = variant.absorbing, variant.penalty
         self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
         self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing, variant.state_only)
@@ -192,7 +201,10 @@ class AdversarialReward:
         x, a, x_next, terminal, absorbing = _tensors(expert)
         zeros = torch.zeros(len(a))
         logits = self.discriminator.logits
-        return gradient_penalty(lambda x, x_next: logits(x, a, x_next, terminal, zeros, absorbing), x, x_next)
+        weight = self.penalty_weight or PENALTY_WEIGHT  # an unpenalised run's penalty is only ever read
+        return gradient_penalty(
+            lambda x, x_next: logits(x, a, x_next, terminal, zeros, absorbing), x, x_next, weight
+        )
 
     def update(self, learner: Transitions) -> float:
         """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
@@ -205,7 +217,7 @@ class AdversarialReward:
                 mine = learner.take(order[start : start + size])
                 theirs = self.demos.take(self.rng.integers(0, len(self.demos), len(mine)))
                 loss = discriminator_loss(self.logits(theirs), self.logits(mine))
-                if self.penalised:
+                if self.penalty_weight:
                     loss = loss + self.penalty(theirs)
                 self.optimiser.zero_grad()
                 loss.backward()

@@ -108,9 +108,13 @@ BUILTIN_METHODS = {
     # the policy's reward centred and scaled as it runs (the imitation library's default for AIRL)
     "GAIL-norm": MethodSpec("GAIL-norm", "rl", algo="gail-norm", steps=50_000),
     "AIRL-norm": MethodSpec("AIRL-norm", "rl", algo="airl-norm", steps=50_000),
-    # the discriminator regularised by a gradient penalty on the expert's pairs (R1)
+    # the discriminator regularised by a gradient penalty on the expert's pairs (R1), weight 10, 1, 0.1
     "GAIL-gp": MethodSpec("GAIL-gp", "rl", algo="gail-gp", steps=50_000),
     "AIRL-gp": MethodSpec("AIRL-gp", "rl", algo="airl-gp", steps=50_000),
+    "GAIL-gp1": MethodSpec("GAIL-gp1", "rl", algo="gail-gp1", steps=50_000),
+    "AIRL-gp1": MethodSpec("AIRL-gp1", "rl", algo="airl-gp1", steps=50_000),
+    "GAIL-gp0.1": MethodSpec("GAIL-gp0.1", "rl", algo="gail-gp0.1", steps=50_000),
+    "AIRL-gp0.1": MethodSpec("AIRL-gp0.1", "rl", algo="airl-gp0.1", steps=50_000),
     # AIRL's reward as a state-only g(s), Fu et al.'s disentangled form
     "AIRL-state": MethodSpec("AIRL-state", "rl", algo="airl-state", steps=50_000),
 }

@@ -39,10 +39,11 @@ from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
 ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", "airl-norm",
-               "gail-gp", "airl-gp", "airl-state")  # fmt: skip
+               "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0.1", "airl-gp0.1",
+               "airl-state")  # fmt: skip
 """PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
-state; "-norm": the reward normalised as it runs; "-gp": a gradient penalty on the discriminator;
-"airl-state": AIRL with a state-only g(s)."""
+state; "-norm": the reward normalised as it runs; "-gp", "-gp1", "-gp0.1": a gradient penalty on
+the discriminator, weight 10, 1, 0.1; "airl-state": AIRL with a state-only g(s)."""
 ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).

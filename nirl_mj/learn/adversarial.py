@@ -37,7 +37,7 @@ Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs (fo
 in both s and s'), added to the logistic loss. Kostrikov et al. (2019) penalise the discriminator
 too, with Gulrajani et al.'s one-centred penalty on points interpolated between expert and learner
 pairs; that needs an action to interpolate, and ours is one of six, so the zero-centred penalty on
-the expert's own pairs is used here, with their weight lambda = 10.
+the expert's own pairs is used here, by default with their weight lambda = 10.
 
 Units: logits and rewards are nats; gamma is the policy learner's discount.
 """
@@ -167,19 +167,22 @@ def discriminator_loss(expert_logits: torch.Tensor, learner_logits: torch.Tensor
 
 
 PENALTY_WEIGHT = 10.0
-"""lambda of :func:`gradient_penalty` (Kostrikov et al. 2019's weight)."""
+"""lambda of :func:`gradient_penalty` by default (Kostrikov et al. 2019's weight)."""
 
 
 def gradient_penalty(
-    logits: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], x: torch.Tensor, x_next: torch.Tensor
+    logits: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+    x: torch.Tensor,
+    x_next: torch.Tensor,
+    weight: float = PENALTY_WEIGHT,
 ) -> torch.Tensor:
-    """R1: (PENALTY_WEIGHT / 2) mean_i ||d l_i / d(x_i, x'_i)||^2 over a batch of expert pairs.
+    """R1: (weight / 2) mean_i ||d l_i / d(x_i, x'_i)||^2 over a batch of expert pairs.
     ``logits(x, x_next)`` (N,) must read the given tensors (a term free of them, such as AIRL's
     ln pi, has no gradient); x and x_next (N, 16). The result keeps its graph, for backward()."""
     x, x_next = x.detach().requires_grad_(True), x_next.detach().requires_grad_(True)
     grads = torch.autograd.grad(logits(x, x_next).sum(), [x, x_next], create_graph=True, allow_unused=True)
     squares = sum((g**2).sum(dim=1) for g in grads if g is not None)
-    return PENALTY_WEIGHT / 2 * torch.as_tensor(squares).mean()
+    return weight / 2 * torch.as_tensor(squares).mean()
 
 
 def make_discriminator(
