@@ -90,7 +90,7 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
 
 
 ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm", "airl-norm",
-                "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0.1", "airl-gp0.1",
+                "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0_1", "airl-gp0_1",
                 "airl-state"]  # fmt: skip
 
 
@@ -132,7 +132,7 @@ def test_the_adversarial_algorithms_are_the_same_list_everywhere():
     assert sorted(algorithms()) == sorted(ADVERSARIAL) == sorted(ALL_VARIANTS)
     assert [variant_of(a).kind for a in ADVERSARIAL] == [a.split("-")[0] for a in ADVERSARIAL]
     assert variant_of("airl-state").state_only and variant_of("airl").penalty == 0.0
-    assert [variant_of(f"gail-{gp}").penalty for gp in ("gp", "gp1", "gp0.1")] == [10.0, 1.0, 0.1]
+    assert [variant_of(f"gail-{gp}").penalty for gp in ("gp", "gp1", "gp0_1")] == [10.0, 1.0, 0.1]
     for wrong in ("gail-state", "airl-gp-norm", "wgan"):
         with pytest.raises(ValueError, match="accepted: gail, airl, gail-absorbing"):
             variant_of(wrong)
@@ -191,7 +191,7 @@ def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
                 squares += ((logits(*up) - logits(*down)).numpy() / (2 * step)) ** 2
     expected = PENALTY_WEIGHT / 2 * squares.mean()
     assert float(reward.penalty(expert).detach()) == pytest.approx(expected, rel=2e-3)
-    lighter = AdversarialReward(algo + "0.1", 0.9, expert, seed=2)  # the same network, a tenth of the weight
+    lighter = AdversarialReward(algo + "0_1", 0.9, expert, seed=2)  # the same network, a tenth of the weight
     assert float(lighter.penalty(expert).detach()) == pytest.approx(expected / 100, rel=2e-3)
 
 

@@ -18,7 +18,7 @@ variance of all the rewards handed out so far (``nirl_mj.learn.running_norm``): 
 library's default for AIRL (its scripts wrap the reward net in ``NormalizedRewardNet(RunningNorm)``;
 its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond the library).
 ``gail-gp`` and ``airl-gp`` add a gradient penalty on the expert's pairs to the discriminator's loss
-(R1, ``nirl_mj.learn.adversarial.gradient_penalty``), weight 10; ``-gp1`` and ``-gp0.1`` weigh it
+(R1, ``nirl_mj.learn.adversarial.gradient_penalty``), weight 10; ``-gp1`` and ``-gp0_1`` weigh it
 1 and 0.1. ``airl-state`` learns a state-only g(s), Fu et al.'s disentangled reward.
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
@@ -51,7 +51,7 @@ from nirl_mj.learn.running_norm import RunningNorm
 DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
-PENALTIES = {"gp": 10.0, "gp1": 1.0, "gp0.1": 0.1}
+PENALTIES = {"gp": 10.0, "gp1": 1.0, "gp0_1": 0.1}
 """The suffixes of an algorithm whose discriminator has a gradient penalty, and its weight lambda."""
 STATE_ONLY = "state"  # the suffix of AIRL with a state-only g(s)
 NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
@@ -130,7 +130,7 @@ class Variant:
     kind: str
     absorbing: bool  # "-absorbing": Kostrikov et al.'s absorbing state
     normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
-    penalty: float = 0.0  # "-gp", "-gp1", "-gp0.1": lambda of an R1 gradient penalty on the expert's pairs
+    penalty: float = 0.0  # "-gp", "-gp1", "-gp0_1": lambda of an R1 gradient penalty on the expert's pairs
     state_only: bool = False  # "-state" (AIRL only): g(s), Fu et al.'s disentangled reward
 
 

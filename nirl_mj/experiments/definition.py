@@ -113,8 +113,8 @@ BUILTIN_METHODS = {
     "AIRL-gp": MethodSpec("AIRL-gp", "rl", algo="airl-gp", steps=50_000),
     "GAIL-gp1": MethodSpec("GAIL-gp1", "rl", algo="gail-gp1", steps=50_000),
     "AIRL-gp1": MethodSpec("AIRL-gp1", "rl", algo="airl-gp1", steps=50_000),
-    "GAIL-gp0.1": MethodSpec("GAIL-gp0.1", "rl", algo="gail-gp0.1", steps=50_000),
-    "AIRL-gp0.1": MethodSpec("AIRL-gp0.1", "rl", algo="airl-gp0.1", steps=50_000),
+    "GAIL-gp0_1": MethodSpec("GAIL-gp0_1", "rl", algo="gail-gp0_1", steps=50_000),
+    "AIRL-gp0_1": MethodSpec("AIRL-gp0_1", "rl", algo="airl-gp0_1", steps=50_000),
     # AIRL's reward as a state-only g(s), Fu et al.'s disentangled form
     "AIRL-state": MethodSpec("AIRL-state", "rl", algo="airl-state", steps=50_000),
 }

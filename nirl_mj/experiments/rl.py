@@ -39,10 +39,10 @@ from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
 ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", "airl-norm",
-               "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0.1", "airl-gp0.1",
+               "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0_1", "airl-gp0_1",
                "airl-state")  # fmt: skip
 """PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
-state; "-norm": the reward normalised as it runs; "-gp", "-gp1", "-gp0.1": a gradient penalty on
+state; "-norm": the reward normalised as it runs; "-gp", "-gp1", "-gp0_1": a gradient penalty on
 the discriminator, weight 10, 1, 0.1; "airl-state": AIRL with a state-only g(s)."""
 ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
