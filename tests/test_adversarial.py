@@ -191,7 +191,7 @@ def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
                 squares += ((logits(*up) - logits(*down)).numpy() / (2 * step)) ** 2
     expected = PENALTY_WEIGHT / 2 * squares.mean()
     assert float(reward.penalty(expert).detach()) == pytest.approx(expected, rel=2e-3)
-    lighter = AdversarialReward(algo + "0_1", 0.9, expert, seed=2)  # the same network, a tenth of the weight
+    lighter = AdversarialReward(algo + "0_1", 0.9, expert, seed=2)  # the same network, weight 0.1 of 10
     assert float(lighter.penalty(expert).detach()) == pytest.approx(expected / 100, rel=2e-3)
 
 

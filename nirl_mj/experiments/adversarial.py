@@ -197,7 +197,8 @@ class AdversarialReward:
         return rewards.astype(np.float32)
 
     def penalty(self, expert: Transitions) -> torch.Tensor:
-        """The gradient penalty on the expert's pairs (the logits' ln pi is a constant in x)."""
+        """The gradient penalty on the expert's pairs. AIRL's ln pi(a | s) is left out (zeros): it
+        depends on s, but through the policy, which the discriminator's step does not move."""
         x, a, x_next, terminal, absorbing = _tensors(expert)
         zeros = torch.zeros(len(a))
         logits = self.discriminator.logits
@@ -208,7 +209,7 @@ class AdversarialReward:
 
     def update(self, learner: Transitions) -> float:
         """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
-        returns the last minibatch's loss."""
+        returns the last minibatch's loss (with "-gp", the penalty included)."""
         loss_value = float("nan")
         size = SETTINGS["batch_size"]
         for _ in range(SETTINGS["epochs"]):

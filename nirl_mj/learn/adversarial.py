@@ -33,11 +33,14 @@ disentangled form (their section 5, eq. 4 with g = g(s)); ``reward(x)`` then giv
 same g(s), so a reward map is flat across actions.
 
 **Gradient penalty** (:func:`gradient_penalty`): the zero-centred R1 penalty of Mescheder, Geiger &
-Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs (for AIRL the gradient
-in both s and s'), added to the logistic loss. Kostrikov et al. (2019) penalise the discriminator
-too, with Gulrajani et al.'s one-centred penalty on points interpolated between expert and learner
-pairs; that needs an action to interpolate, and ours is one of six, so the zero-centred penalty on
-the expert's own pairs is used here, by default with their weight lambda = 10.
+Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs in the scaled inputs x,
+added to the logistic loss. For AIRL the gradient is f's, in both s and s': ln pi(a | s) depends on
+s too, but it is the policy's, not the discriminator's to move, so it is left out (strictly R1 of
+D would include it). Kostrikov et al. (2019) penalise the discriminator with lambda = 10, but with
+Gulrajani et al.'s one-centred penalty, lambda E (||grad|| - 1)^2 with no 1/2, on points interpolated
+between expert and learner pairs; that needs an action to interpolate, and ours is one of six, so
+the zero-centred penalty on the expert's own pairs is used here, lambda = 10 by default (their
+number, not the same coefficient: ours halves it).
 
 Units: logits and rewards are nats; gamma is the policy learner's discount.
 """
@@ -177,12 +180,12 @@ def gradient_penalty(
     weight: float = PENALTY_WEIGHT,
 ) -> torch.Tensor:
     """R1: (weight / 2) mean_i ||d l_i / d(x_i, x'_i)||^2 over a batch of expert pairs.
-    ``logits(x, x_next)`` (N,) must read the given tensors (a term free of them, such as AIRL's
-    ln pi, has no gradient); x and x_next (N, 16). The result keeps its graph, for backward()."""
+    ``logits(x, x_next)`` (N,) must read x (x_next may go unread, as GAIL's does); x and x_next
+    (N, 16) scaled phi. The result keeps its graph, for backward()."""
     x, x_next = x.detach().requires_grad_(True), x_next.detach().requires_grad_(True)
     grads = torch.autograd.grad(logits(x, x_next).sum(), [x, x_next], create_graph=True, allow_unused=True)
     squares = sum((g**2).sum(dim=1) for g in grads if g is not None)
-    return weight / 2 * torch.as_tensor(squares).mean()
+    return weight / 2 * squares.mean()
 
 
 def make_discriminator(
