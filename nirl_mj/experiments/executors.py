@@ -25,6 +25,7 @@ not stored, so the next run tries it again), never silently dropped.
 
 from __future__ import annotations
 
+import gc
 import json
 import multiprocessing
 import os
@@ -304,6 +305,9 @@ class _Local:
     def submit(self, cell: Cell) -> Future:
         for _ in range(2):
             if self.pool is None:
+                # A rendering context left in a reference cycle must be freed here, on the thread
+                # where it is current: collected later on the pool's manager thread, it cannot be.
+                gc.collect()
                 spawn = multiprocessing.get_context("spawn")  # no inherited MuJoCo or OpenGL state
                 self.pool = ProcessPoolExecutor(self.capacity, mp_context=spawn)
             try:
