@@ -522,3 +522,29 @@ def test_reuse_takes_the_same_cells_of_an_earlier_comparison_and_computes_the_re
     assert "another experiment (it differs in: tests)" in capsys.readouterr().err
     assert compare(wider, new, "--reuse", str(old)) == 0
     assert "reuse: 0 finished cells taken" in capsys.readouterr().err
+
+
+def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_new_name(tmp_path, capsys):
+    """A named variant that became the default (``NIRL-policy`` then, ``NIRL`` now) is the same
+    computation; one whose resolved settings differ (``NIRL-classifier``) is computed."""
+    head = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = {}\n'
+    policy = '[method.NIRL-policy]\nkind = "irl"\nconfig = {{ matching = "policy" }}\n'
+    old_spec = write_spec(tmp_path, head.format('["NIRL-policy"]'), "old.toml")
+    old_spec.write_text(old_spec.read_text() + policy.format())
+    new_spec = write_spec(tmp_path, head.format('["NIRL", "NIRL-classifier"]'), "new.toml")
+    old, new = tmp_path / "old", tmp_path / "new"
+    run = ["compare", "--executor", "serial", "--quiet"]
+    assert main([*run, "--task", str(old_spec), "--out", str(old)]) == 0
+    assert main([*run, "--task", str(new_spec), "--out", str(new), "--reuse", str(old)]) == 0
+    assert "reuse: 1 finished cells taken from" in capsys.readouterr().err
+    before = json.loads((old / "cells" / "NIRL-policy-run000.json").read_text())
+    taken = json.loads((new / "cells" / "NIRL-run000.json").read_text())
+    assert (taken["id"], taken["reused_as"], taken["result"]["method"]) == (
+        "NIRL-run000",
+        "NIRL-policy",
+        "NIRL",
+    )
+    assert {**taken["result"], "method": "NIRL-policy"} == before["result"]
+    assert (new / "runs" / "NIRL" / "0" / "policy.npz").is_file()
+    assert "reused_from" not in json.loads((new / "cells" / "NIRL-classifier-run000.json").read_text())
+    assert list(json.loads((new / "results.json").read_text())["methods"]) == ["NIRL", "NIRL-classifier"]

@@ -9,13 +9,16 @@ method M and run r is taken only when all of these hold:
 - OLD's identity equals the new one in every key but the method list and the learners' settings
   (task, test task, seed, tests, expert, demonstrations, config, sweep axes);
 - OLD's demonstrations hold the same arrays;
-- M is in OLD with the same definition and, if it trains, the same resolved learner settings;
+- M is in OLD with the same definition and, if it trains, the same resolved learner settings; or
+  M is a trained learner and OLD holds one of another name with the same resolved learner settings
+  (which name the variant, the algorithm and every setting), as when a named variant became the
+  default: the cell is taken under M's name;
 - run r's test arenas in OLD (held out from everything OLD's trainable methods may see) are the
   new run's test arenas.
 
 What this cannot see is a change in the code itself: it trusts that the same settings compute the
 same numbers, as resuming an output directory does. Each copied cell records where it came from
-(``reused_from``).
+(``reused_from``, and ``reused_as`` when it was OLD's cell of another name).
 """
 
 from __future__ import annotations
@@ -84,6 +87,31 @@ def copy_run(source: Path, target: Path) -> None:
     os.replace(temporary, target)
 
 
+def old_source(
+    name: str,
+    old_methods: dict[str, dict],
+    new_methods: dict[str, dict],
+    old_learners: dict,
+    new_learners: dict,
+) -> str | None:
+    """The method of OLD whose cells are the new method ``name``'s computation, or None: ``name``
+    itself when its definition and resolved learner settings are unchanged, else (for a trained
+    learner) the first method of OLD, by name, of the same kind whose resolved learner settings are
+    equal (a renamed variant)."""
+    if old_methods.get(name) == new_methods[name] and old_learners.get(name) == new_learners.get(name):
+        return name
+    settings = new_learners.get(name)
+    if settings is None:
+        return None
+    kind = new_methods[name].get("kind")
+    same = (
+        m
+        for m in sorted(old_learners)
+        if old_learners[m] == settings and old_methods.get(m, {}).get("kind") == kind
+    )
+    return next(same, None)
+
+
 def reuse_cells(
     old: str | Path,
     experiment: Experiment,
@@ -112,23 +140,36 @@ def reuse_cells(
     demo_seeds = {t.arena_seed for t in load_dataset(out / "demos.npz")}
     source, target = CellStore(old / "cells"), CellStore(out / "cells")
     taken, tests_match = [], {}
+    sources = {
+        name: old_source(name, old_methods, new_methods, old_learners, new_learners) for name in new_methods
+    }
     for (name, run), job in jobs.items():
-        ident = cell_id(name, run)
-        if target.load(ident) is not None or old_methods.get(name) != new_methods[name]:
-            continue
-        if old_learners.get(name) != new_learners.get(name) or source.load(ident) is None:
+        ident, source_name = cell_id(name, run), sources[name]
+        if (
+            source_name is None
+            or target.load(ident) is not None
+            or source.load(cell_id(source_name, run)) is None
+        ):
             continue
         if run not in tests_match:
             seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
             tests_match[run] = seeds == list(job.test_seeds)
-        old_run, new_run = old / "runs" / name / str(job.seed), Path(job.run_dir)
+        old_run, new_run = old / "runs" / source_name / str(job.seed), Path(job.run_dir)
         if not tests_match[run] or new_run.exists():
             continue
         if old_run.is_dir():
             copy_run(old_run, new_run)
-        record = json.loads(source.path(ident).read_text())
+        record = json.loads(source.path(cell_id(source_name, run)).read_text())
+        record = {
+            **record,
+            "id": ident,
+            "result": {**record["result"], "method": name},
+            "reused_from": str(old),
+        }
+        if source_name != name:
+            record["reused_as"] = source_name
         target.directory.mkdir(parents=True, exist_ok=True)
-        write_text(target.path(ident), json.dumps({**record, "reused_from": str(old)}, indent=1))
+        write_text(target.path(ident), json.dumps(record, indent=1))
         taken.append(ident)
     log(f"reuse: {len(taken)} finished cells taken from {old}")
     return taken
