@@ -91,7 +91,7 @@ def test_gail_absorbing_state_is_an_input_of_the_network():
 
 ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm", "airl-norm",
                 "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0_1", "airl-gp0_1",
-                "airl-state"]  # fmt: skip
+                "airl-state", "gail-d2", "airl-d2"]  # fmt: skip
 
 
 @pytest.mark.parametrize("algo", ALL_VARIANTS)
@@ -138,6 +138,29 @@ def test_the_adversarial_algorithms_are_the_same_list_everywhere():
             variant_of(wrong)
     with pytest.raises(ValueError, match="state-only reward is AIRL's"):
         make_discriminator("gail", 0.9, state_only=True)
+
+
+@pytest.mark.parametrize("algo, steps", [("gail", 4 * 3), ("airl", 4 * 3), ("gail-d2", 2), ("airl-d2", 2)])
+def test_the_discriminator_takes_minibatch_epochs_or_two_full_batch_steps(algo, steps):
+    """600 learner pairs: 4 epochs of 3 minibatches (256, 256, 88) by default; with "-d2" two Adam
+    steps, each on all 600 pairs against 600 demonstrated ones (the imitation library's default)."""
+    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+
+    rng = np.random.default_rng(0)
+
+    def pairs(n: int) -> Transitions:
+        return Transitions.of(
+            rng.random((n, 16)), rng.integers(0, 6, n), rng.random((n, 16)), np.zeros(n, bool)
+        )
+
+    reward = AdversarialReward(algo, 0.99, pairs(50), seed=1)
+    sizes = []
+    logits = reward.logits
+    reward.logits = lambda batch: (sizes.append(len(batch.actions)), logits(batch))[1]
+    reward.update(pairs(600))
+    per_step = [600] * 4 if algo.endswith("d2") else [256, 256, 256, 256, 88, 88] * 4
+    assert sizes == per_step  # the demonstrated pairs' minibatch, then the learner's, per step
+    assert reward.optimiser.state_dict()["state"][0]["step"] == steps
 
 
 def test_airl_state_only_reward_by_hand():

@@ -20,6 +20,10 @@ its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond t
 ``gail-gp`` and ``airl-gp`` add a gradient penalty on the expert's pairs to the discriminator's loss
 (R1, ``nirl_mj.learn.adversarial.gradient_penalty``), weight 10; ``-gp1`` and ``-gp0_1`` weigh it
 1 and 0.1. ``airl-state`` learns a state-only g(s), Fu et al.'s disentangled reward.
+``gail-d2`` and ``airl-d2`` train the discriminator less: two full-batch Adam steps per rollout (all
+its pairs against as many demonstrated ones) instead of ``epochs`` passes of minibatches, the
+imitation library's default (``AdversarialTrainer(n_disc_updates_per_round=2)``, with its replay
+buffer the last rollout).
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -54,9 +58,11 @@ NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normali
 PENALTIES = {"gp": 10.0, "gp1": 1.0, "gp0_1": 0.1}
 """The suffixes of an algorithm whose discriminator has a gradient penalty, and its weight lambda."""
 STATE_ONLY = "state"  # the suffix of AIRL with a state-only g(s)
+FULL_BATCH_STEPS = {"d2": 2}
+"""The suffixes of an algorithm whose discriminator takes that many full-batch steps per rollout."""
 NORM_KEY = "reward_norm"  # the RunningNorm's state in discriminator.npz
 KINDS = ("gail", "airl")
-OPTIONS = ("", ABSORBING, NORMALISED, *PENALTIES, STATE_ONLY)
+OPTIONS = ("", ABSORBING, NORMALISED, *PENALTIES, STATE_ONLY, *FULL_BATCH_STEPS)
 SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
@@ -132,6 +138,13 @@ class Variant:
     normalised: bool  # "-norm": the policy's reward through a RunningNorm (learn/running_norm.py)
     penalty: float = 0.0  # "-gp", "-gp1", "-gp0_1": lambda of an R1 gradient penalty on the expert's pairs
     state_only: bool = False  # "-state" (AIRL only): g(s), Fu et al.'s disentangled reward
+    full_batch_steps: int = 0  # "-d2": Adam steps per rollout on all its pairs; 0: SETTINGS' minibatch epochs
+
+    def passes(self, pairs: int) -> tuple[int, int]:
+        """(passes over a rollout of ``pairs`` learner pairs, minibatch size) for the discriminator."""
+        if self.full_batch_steps:
+            return self.full_batch_steps, max(pairs, 1)
+        return SETTINGS["epochs"], SETTINGS["batch_size"]
 
 
 def algorithms() -> list[str]:
@@ -148,7 +161,12 @@ def variant_of(algo: str) -> Variant:
         raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(algorithms())}")
     kind, _, option = algo.partition("-")
     return Variant(
-        kind, option == ABSORBING, option == NORMALISED, PENALTIES.get(option, 0.0), option == STATE_ONLY
+        kind,
+        option == ABSORBING,
+        option == NORMALISED,
+        PENALTIES.get(option, 0.0),
+        option == STATE_ONLY,
+        FULL_BATCH_STEPS.get(option, 0),
     )
 
 
@@ -168,6 +186,7 @@ class AdversarialReward:
     def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
         variant = variant_of(algo)
         self.absorbing, self.penalty_weight = variant.absorbing, variant.penalty
+        self.passes = variant.passes
         self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
         self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing, variant.state_only)
@@ -208,11 +227,12 @@ class AdversarialReward:
         )
 
     def update(self, learner: Transitions) -> float:
-        """``epochs`` passes over the learner's pairs, each minibatch against as many expert pairs;
-        returns the last minibatch's loss (with "-gp", the penalty included)."""
+        """Passes over the learner's pairs (``epochs`` of minibatches, or with "-d2" two of the whole
+        rollout), each minibatch against as many expert pairs; returns the last minibatch's loss
+        (with "-gp", the penalty included)."""
         loss_value = float("nan")
-        size = SETTINGS["batch_size"]
-        for _ in range(SETTINGS["epochs"]):
+        passes, size = self.passes(len(learner))
+        for _ in range(passes):
             order = self.rng.permutation(len(learner))
             for start in range(0, len(order), size):
                 mine = learner.take(order[start : start + size])

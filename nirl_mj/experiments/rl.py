@@ -5,7 +5,8 @@ from the demonstrations: PPO with every reward replaced by a discriminator's
 (``nirl_mj.experiments.adversarial``); they never read the task's reward. ``gail-absorbing`` and
 ``airl-absorbing`` are the same with an absorbing state (Kostrikov et al. 2019); ``gail-norm`` and
 ``airl-norm`` with the policy's reward normalised by its running mean and variance; ``gail-gp`` and
-``airl-gp`` with a gradient penalty on the discriminator; ``airl-state`` with a state-only g(s).
+``airl-gp`` with a gradient penalty on the discriminator; ``airl-state`` with a state-only g(s);
+``gail-d2`` and ``airl-d2`` with two full-batch discriminator steps per rollout.
 
 NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
 phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
@@ -40,10 +41,11 @@ from nirl_mj.sim.observations import feature_bounds
 
 ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", "airl-norm",
                "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0_1", "airl-gp0_1",
-               "airl-state")  # fmt: skip
+               "airl-state", "gail-d2", "airl-d2")  # fmt: skip
 """PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
 state; "-norm": the reward normalised as it runs; "-gp", "-gp1", "-gp0_1": a gradient penalty on
-the discriminator, weight 10, 1, 0.1; "airl-state": AIRL with a state-only g(s)."""
+the discriminator, weight 10, 1, 0.1; "airl-state": AIRL with a state-only g(s); "-d2": two
+full-batch discriminator steps per rollout (the imitation library's default)."""
 ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
