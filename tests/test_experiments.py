@@ -528,9 +528,9 @@ def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_
     """A named variant that became the default (``NIRL-policy`` then, ``NIRL`` now) is the same
     computation; one whose resolved settings differ (``NIRL-classifier``) is computed."""
     head = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = {}\n'
-    policy = '[method.NIRL-policy]\nkind = "irl"\nconfig = {{ matching = "policy" }}\n'
+    policy = '[method.NIRL-policy]\nkind = "irl"\nconfig = { matching = "policy" }\n'
     old_spec = write_spec(tmp_path, head.format('["NIRL-policy"]'), "old.toml")
-    old_spec.write_text(old_spec.read_text() + policy.format())
+    old_spec.write_text(old_spec.read_text() + policy)
     new_spec = write_spec(tmp_path, head.format('["NIRL", "NIRL-classifier"]'), "new.toml")
     old, new = tmp_path / "old", tmp_path / "new"
     run = ["compare", "--executor", "serial", "--quiet"]
