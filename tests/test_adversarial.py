@@ -161,6 +161,9 @@ def test_the_discriminator_takes_minibatch_epochs_or_two_full_batch_steps(algo, 
     per_step = [600] * 4 if algo.endswith("d2") else [256, 256, 256, 256, 88, 88] * 4
     assert sizes == per_step  # the demonstrated pairs' minibatch, then the learner's, per step
     assert reward.optimiser.state_dict()["state"][0]["step"] == steps
+    recorded = reward.variant.settings()  # what the run's run.json says it did
+    assert recorded == ({"full_batch_steps": 2, "learning_rate": 3e-4} if algo.endswith("d2") else
+                        {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4})  # fmt: skip
 
 
 def test_airl_state_only_reward_by_hand():

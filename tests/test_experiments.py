@@ -70,9 +70,11 @@ def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
 NOT_READ = {"nirl": {"al_expectations", "re_expectations"}, "al": {"matching"}, "re": {"matching"},
             "scirl": {"matching"}}  # fmt: skip
 """Learner settings an algorithm does not read: a change of their default leaves its results as they were."""
-RECORDED = {"table1": "table1_extended"}
-"""A task file whose recorded outputs (docs/results/...) have another name; docs/results/table1 is the
-first Table I (2026-11-22), which that file has since grown out of."""
+RECORDED = {"table1": ("table1_extended", {}), "table1_nirl": ("nirl_policy", {"NIRL": "NIRL-policy"})}
+"""A task file whose recorded outputs (docs/results/...) have another name, and its methods' names
+there. docs/results/table1 is the first Table I (2026-11-22), which tasks/table1.toml has since grown
+out of; tasks/table1_nirl.toml's default was measured as tasks/ablations/nirl_policy.toml."""
+SHARED = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "obstacles", "speeds")
 
 
 @pytest.mark.parametrize(
@@ -81,19 +83,27 @@ first Table I (2026-11-22), which that file has since grown out of."""
 def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_results(task):
     """A default that changes after an experiment was recorded must not change what its task file
     computes: the file pins the old value (as tasks/ablations/nirl_default.toml's [config] does).
-    Every learner setting the recorded identity holds, and the learner reads, is compared; settings
-    added since then are not in it."""
-    recorded = ROOT / "docs" / "results" / RECORDED.get(task, task) / "experiment.json"
+    Compared with the recorded identity: the task, tests and demonstrations; the definition of each
+    method that does not train; and every learner setting the recorded identity holds and the
+    learner reads (settings added since then are not in it)."""
+    results, names = RECORDED.get(task, (task, {}))
+    recorded = ROOT / "docs" / "results" / results / "experiment.json"
     if not recorded.is_file():
         pytest.skip(f"no recorded results for {task}")
     path = next(p for p in [ROOT / "tasks" / f"{task}.toml", ROOT / "tasks" / "ablations" / f"{task}.toml"]
                 if p.is_file())  # fmt: skip
-    saved, now = json.loads(recorded.read_text())["learners"], load_experiment(path).identity()["learners"]
-    assert sorted(saved) == sorted(now)
-    for name, old in saved.items():
-        ignored = NOT_READ.get(now[name]["method"], set())
+    saved, now = json.loads(recorded.read_text()), load_experiment(path).identity()
+    assert {k: saved.get(k) for k in SHARED} == {k: now.get(k) for k in SHARED}, path.name
+    old_methods = {m["name"]: m for m in saved["methods"]}
+    for method in now["methods"]:
+        if method["name"] not in now["learners"]:
+            assert old_methods.get(method["name"]) == method, f"{path.name}: {method['name']} changed"
+    assert sorted(saved["learners"]) == sorted(names.get(n, n) for n in now["learners"])
+    for name, settings in now["learners"].items():
+        ignored = NOT_READ.get(settings["method"], set())
+        old = saved["learners"][names.get(name, name)]
         changed = {
-            k: (v, now[name].get(k)) for k, v in old.items() if k not in ignored and now[name].get(k) != v
+            k: (v, settings.get(k)) for k, v in old.items() if k not in ignored and settings.get(k) != v
         }
         assert not changed, (
             f"{path.name}: {name}'s settings changed since its results were recorded: {changed}"
@@ -581,3 +591,7 @@ def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_
     assert (new / "runs" / "NIRL" / "0" / "policy.npz").is_file()
     assert "reused_from" not in json.loads((new / "cells" / "NIRL-classifier-run000.json").read_text())
     assert list(json.loads((new / "results.json").read_text())["methods"]) == ["NIRL", "NIRL-classifier"]
+    # Taken again under its own name, the cell names only where it now came from.
+    assert main([*run, "--task", str(new_spec), "--out", str(tmp_path / "third"), "--reuse", str(new)]) == 0
+    again = json.loads((tmp_path / "third" / "cells" / "NIRL-run000.json").read_text())
+    assert again["reused_from"] == str(new.resolve()) and "reused_as" not in again

@@ -22,8 +22,7 @@ its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond t
 1 and 0.1. ``airl-state`` learns a state-only g(s), Fu et al.'s disentangled reward.
 ``gail-d2`` and ``airl-d2`` train the discriminator less: two full-batch Adam steps per rollout (all
 its pairs against as many demonstrated ones) instead of ``epochs`` passes of minibatches, the
-imitation library's default (``AdversarialTrainer(n_disc_updates_per_round=2)``, with its replay
-buffer the last rollout).
+imitation library's default number of updates (``AdversarialTrainer(n_disc_updates_per_round=2)``).
 
 The discriminator's weights are saved with every checkpoint (``discriminator.npz``, atomically) and
 restored by a resume; AIRL's reward g(s, a) can be read back with :func:`load_discriminator`.
@@ -140,6 +139,12 @@ class Variant:
     state_only: bool = False  # "-state" (AIRL only): g(s), Fu et al.'s disentangled reward
     full_batch_steps: int = 0  # "-d2": Adam steps per rollout on all its pairs; 0: SETTINGS' minibatch epochs
 
+    def settings(self) -> dict:
+        """The discriminator's training per PPO rollout, as a run records it."""
+        if self.full_batch_steps:
+            return {"full_batch_steps": self.full_batch_steps, "learning_rate": SETTINGS["learning_rate"]}
+        return dict(SETTINGS)
+
     def passes(self, pairs: int) -> tuple[int, int]:
         """(passes over a rollout of ``pairs`` learner pairs, minibatch size) for the discriminator."""
         if self.full_batch_steps:
@@ -186,7 +191,7 @@ class AdversarialReward:
     def __init__(self, algo: str, gamma: float, demos: Transitions, seed: int) -> None:
         variant = variant_of(algo)
         self.absorbing, self.penalty_weight = variant.absorbing, variant.penalty
-        self.passes = variant.passes
+        self.variant = variant
         self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
         self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing, variant.state_only)
@@ -231,7 +236,7 @@ class AdversarialReward:
         rollout), each minibatch against as many expert pairs; returns the last minibatch's loss
         (with "-gp", the penalty included)."""
         loss_value = float("nan")
-        passes, size = self.passes(len(learner))
+        passes, size = self.variant.passes(len(learner))
         for _ in range(passes):
             order = self.rng.permutation(len(learner))
             for start in range(0, len(order), size):

@@ -117,7 +117,7 @@ BUILTIN_METHODS = {
     "AIRL-gp0_1": MethodSpec("AIRL-gp0_1", "rl", algo="airl-gp0_1", steps=50_000),
     # AIRL's reward as a state-only g(s), Fu et al.'s disentangled form
     "AIRL-state": MethodSpec("AIRL-state", "rl", algo="airl-state", steps=50_000),
-    # the discriminator trained less: 2 full-batch steps per rollout (the imitation library's default)
+    # 2 discriminator steps per rollout, each on all of it (the imitation library's default number)
     "GAIL-d2": MethodSpec("GAIL-d2", "rl", algo="gail-d2", steps=50_000),
     "AIRL-d2": MethodSpec("AIRL-d2", "rl", algo="airl-d2", steps=50_000),
 }

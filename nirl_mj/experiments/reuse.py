@@ -9,9 +9,9 @@ method M and run r is taken only when all of these hold:
 - OLD's identity equals the new one in every key but the method list and the learners' settings
   (task, test task, seed, tests, expert, demonstrations, config, sweep axes);
 - OLD's demonstrations hold the same arrays;
-- M is in OLD with the same definition and, if it trains, the same resolved learner settings; or
-  M is a trained learner and OLD holds one of another name with the same resolved learner settings
-  (which name the variant, the algorithm and every setting), as when a named variant became the
+- M does not train and OLD holds M with the same definition; or M is a trained learner and OLD
+  holds a method with the same resolved learner settings (which name the variant, the algorithm
+  and every setting), of M's name (preferred) or another, as when a named variant became the
   default: the cell is taken under M's name;
 - run r's test arenas in OLD (held out from everything OLD's trainable methods may see) are the
   new run's test arenas.
@@ -87,29 +87,18 @@ def copy_run(source: Path, target: Path) -> None:
     os.replace(temporary, target)
 
 
-def old_source(
-    name: str,
-    old_methods: dict[str, dict],
-    new_methods: dict[str, dict],
-    old_learners: dict,
-    new_learners: dict,
-) -> str | None:
-    """The method of OLD whose cells are the new method ``name``'s computation, or None: ``name``
-    itself when its definition and resolved learner settings are unchanged, else (for a trained
-    learner) the first method of OLD, by name, of the same kind whose resolved learner settings are
-    equal (a renamed variant)."""
-    if old_methods.get(name) == new_methods[name] and old_learners.get(name) == new_learners.get(name):
-        return name
+def old_sources(
+    name: str, old_methods: dict, new_methods: dict, old_learners: dict, new_learners: dict
+) -> list[str]:
+    """The methods of OLD whose cells are the new method ``name``'s computation, best first. A
+    method that does not train: ``name`` with the same definition. A trained learner: every method
+    of OLD with the same resolved learner settings (they name the variant, the algorithm and every
+    setting), ``name`` first, then the others by name (a renamed variant)."""
     settings = new_learners.get(name)
-    if settings is None:
-        return None
-    kind = new_methods[name].get("kind")
-    same = (
-        m
-        for m in sorted(old_learners)
-        if old_learners[m] == settings and old_methods.get(m, {}).get("kind") == kind
-    )
-    return next(same, None)
+    if settings is None:  # not a trained learner: its definition is what it computes
+        return [name] if old_methods.get(name) == new_methods[name] else []
+    candidates = dict.fromkeys([name, *sorted(old_learners)])  # ordered, without repeats
+    return [m for m in candidates if old_learners.get(m) == settings]
 
 
 def reuse_cells(
@@ -141,16 +130,14 @@ def reuse_cells(
     source, target = CellStore(old / "cells"), CellStore(out / "cells")
     taken, tests_match = [], {}
     sources = {
-        name: old_source(name, old_methods, new_methods, old_learners, new_learners) for name in new_methods
+        name: old_sources(name, old_methods, new_methods, old_learners, new_learners) for name in new_methods
     }
     for (name, run), job in jobs.items():
-        ident, source_name = cell_id(name, run), sources[name]
-        if (
-            source_name is None
-            or target.load(ident) is not None
-            or source.load(cell_id(source_name, run)) is None
-        ):
+        ident = cell_id(name, run)
+        found = [m for m in sources[name] if source.load(cell_id(m, run)) is not None]
+        if not found or target.load(ident) is not None:
             continue
+        source_name = found[0]
         if run not in tests_match:
             seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
             tests_match[run] = seeds == list(job.test_seeds)
@@ -160,12 +147,8 @@ def reuse_cells(
         if old_run.is_dir():
             copy_run(old_run, new_run)
         record = json.loads(source.path(cell_id(source_name, run)).read_text())
-        record = {
-            **record,
-            "id": ident,
-            "result": {**record["result"], "method": name},
-            "reused_from": str(old),
-        }
+        record = {k: v for k, v in record.items() if k != "reused_as"}  # OLD's own provenance is OLD's
+        record.update(id=ident, result={**record["result"], "method": name}, reused_from=str(old))
         if source_name != name:
             record["reused_as"] = source_name
         target.directory.mkdir(parents=True, exist_ok=True)

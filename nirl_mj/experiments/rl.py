@@ -45,7 +45,7 @@ ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", 
 """PPO on a discriminator's reward (nirl_mj.experiments.adversarial); "-absorbing": with an absorbing
 state; "-norm": the reward normalised as it runs; "-gp", "-gp1", "-gp0_1": a gradient penalty on
 the discriminator, weight 10, 1, 0.1; "airl-state": AIRL with a state-only g(s); "-d2": two
-full-batch discriminator steps per rollout (the imitation library's default)."""
+full-batch discriminator steps per rollout (the imitation library's default number of updates)."""
 ALGOS = ("ppo", "dqn", *ADVERSARIAL)
 SETTINGS: dict[str, dict[str, Any]] = {
     # Stable-Baselines3's defaults but for a smaller PPO rollout (episodes are ~60-340 decisions).
@@ -120,7 +120,9 @@ def train_rl(
         from nirl_mj.experiments import adversarial as adv
 
         trajectories = load_dataset(demos)
-    config = {"algo": algo, **SETTINGS[algo], **({"discriminator": adv.SETTINGS} if adversarial else {})}
+    config = {"algo": algo, **SETTINGS[algo]}
+    if adversarial:
+        config["discriminator"] = adv.variant_of(algo).settings()
     run = RunDir(run_dir)
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
