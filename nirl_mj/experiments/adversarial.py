@@ -20,7 +20,7 @@ its GAIL's policy reward bypasses the normaliser, so ``gail-norm`` goes beyond t
 ``gail-gp`` and ``airl-gp`` add a gradient penalty on the expert's pairs to the discriminator's loss
 (R1, ``nirl_mj.learn.adversarial.gradient_penalty``), weight 10; ``-gp1`` and ``-gp0_1`` weigh it
 1 and 0.1. ``airl-state`` learns a state-only g(s), Fu et al.'s disentangled reward.
-``gail-d2`` and ``airl-d2`` train the discriminator less: two full-batch Adam steps per rollout (all
+``gail-d2`` and ``airl-d2`` take fewer discriminator steps: two full-batch Adam steps per rollout (all
 its pairs against as many demonstrated ones) instead of ``epochs`` passes of minibatches, the
 imitation library's default number of updates (``AdversarialTrainer(n_disc_updates_per_round=2)``).
 
@@ -161,17 +161,17 @@ def algorithms() -> list[str]:
 
 
 def variant_of(algo: str) -> Variant:
-    """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", True, False)."""
+    """Parses an adversarial ``algo``: "airl-absorbing" -> Variant("airl", absorbing=True, ...)."""
     if algo not in algorithms():
         raise ValueError(f"unknown adversarial algorithm {algo!r}: accepted: {', '.join(algorithms())}")
     kind, _, option = algo.partition("-")
     return Variant(
         kind,
-        option == ABSORBING,
-        option == NORMALISED,
-        PENALTIES.get(option, 0.0),
-        option == STATE_ONLY,
-        FULL_BATCH_STEPS.get(option, 0),
+        absorbing=option == ABSORBING,
+        normalised=option == NORMALISED,
+        penalty=PENALTIES.get(option, 0.0),
+        state_only=option == STATE_ONLY,
+        full_batch_steps=FULL_BATCH_STEPS.get(option, 0),
     )
 
 
