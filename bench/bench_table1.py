@@ -46,10 +46,13 @@ TARGET_MIN = 90.0
 
 
 def cell_seconds(out: Path) -> dict[str, list[float]]:
-    """Seconds of every finished cell in ``out``/cells, by method."""
+    """Seconds of every finished cell in ``out``/cells that was timed, by method (a cell restored
+    from published results, docs/scripts/restore_cells.py, has no time)."""
     times: dict[str, list[float]] = {}
     for path in sorted((out / "cells").glob("*.json")):
         record = json.loads(path.read_text())
+        if "seconds" not in record:
+            continue
         method = record["id"].rsplit("-run", 1)[0]
         times.setdefault(method, []).append(float(record["seconds"]))
     return times
@@ -77,7 +80,7 @@ def window_efficiency(out: Path, workers: int, until: str) -> tuple[float, str]:
     spans = []
     for path in (out / "cells").glob("*.json"):
         record, end = json.loads(path.read_text()), path.stat().st_mtime
-        if "reused_from" not in record and end <= limit:
+        if "reused_from" not in record and "seconds" in record and end <= limit:
             spans.append((end - float(record["seconds"]), end, float(record["seconds"])))
     if not spans:
         raise SystemExit(f"--window-until {until}: no cell of {out} finished by then")

@@ -567,6 +567,62 @@ def test_reuse_takes_the_same_cells_of_an_earlier_comparison_and_computes_the_re
     assert "reuse: 0 finished cells taken" in capsys.readouterr().err
 
 
+def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_computes_the_rest(tmp_path):
+    """docs/scripts/restore_cells.py's function: a published results folder (experiment.json and
+    results.json alone) gives back the runs asked, renamed where told; the resume then computes the
+    rest and the table is the published one. Another experiment or an unknown rename is refused."""
+    from nirl_mj.experiments.compare import cell_id
+    from nirl_mj.experiments.protocol import Execution, prepare
+    from nirl_mj.experiments.reuse import restore_published
+
+    head = 'kind = "compare"\nruns = 2\ntests = 2\nmethods = {}\n'
+    policy = '[method.NIRL-policy]\nkind = "irl"\nconfig = { matching = "policy" }\n'
+    old_spec = write_spec(tmp_path, head.format('["NIRL-policy", "rule"]'), "old.toml")
+    old_spec.write_text(old_spec.read_text() + policy)
+    new_spec = write_spec(tmp_path, head.format('["NIRL", "rule", "forward"]'), "new.toml")
+    run = ["compare", "--executor", "serial", "--quiet"]
+    assert main([*run, "--task", str(old_spec), "--out", str(tmp_path / "old")]) == 0
+    published = tmp_path / "published"  # what docs/results keeps of an experiment
+    published.mkdir()
+    for name in ("experiment.json", "results.json"):
+        (published / name).write_text((tmp_path / "old" / name).read_text())
+
+    experiment, lost = load_experiment(new_spec), tmp_path / "lost"
+    out, jobs = prepare(experiment, lost, Execution("serial"), lambda _: None)
+    said = []
+    taken = restore_published(
+        published, experiment, out, jobs, cell_id, {"NIRL": "NIRL-policy"}, range(1), said.append
+    )
+    assert taken == ["NIRL-run000", "rule-run000"], said  # run 0 only; forward is not published
+    record = json.loads((lost / "cells" / "NIRL-run000.json").read_text())
+    assert (record["reused_as"], record["result"]["method"], "seconds" in record) == (
+        "NIRL-policy",
+        "NIRL",
+        False,
+    )
+    assert record["restored_from"] == str(published / "results.json")
+    # Without the rename, the published NIRL-policy is not NIRL; rule's run 1 is taken.
+    assert restore_published(published, experiment, out, jobs, cell_id, log=said.append) == ["rule-run001"]
+    assert main([*run, "--task", str(new_spec), "--out", str(lost)]) == 0  # the resume: NIRL's run 1, forward
+    old = json.loads((tmp_path / "old" / "results.json").read_text())["cells"]
+    new = json.loads((lost / "results.json").read_text())["cells"]
+    for r in (0, 1):
+        assert new[f"NIRL-run00{r}"] == {**old[f"NIRL-policy-run00{r}"], "method": "NIRL"}
+        assert new[f"rule-run00{r}"] == old[f"rule-run00{r}"]
+    assert (
+        not (lost / "runs" / "NIRL" / "0").exists()
+        and (lost / "runs" / "NIRL" / "1" / "policy.npz").is_file()
+    )
+
+    with pytest.raises(ExperimentError, match="not a method of this experiment"):
+        restore_published(published, experiment, out, jobs, cell_id, {"NIRL-policy": "NIRL"})
+    other = dataclasses.replace(experiment, tests=3)
+    with pytest.raises(ExperimentError, match=r"another experiment \(it differs in: tests\)"):
+        restore_published(published, other, out, jobs, cell_id)
+    with pytest.raises(ExperimentError, match="not a published experiment"):
+        restore_published(tmp_path / "nowhere", experiment, out, jobs, cell_id)
+
+
 def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_new_name(tmp_path, capsys):
     """A named variant that became the default (``NIRL-policy`` then, ``NIRL`` now) is the same
     computation; one whose resolved settings differ (``NIRL-classifier``) is computed."""

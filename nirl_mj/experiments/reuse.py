@@ -70,12 +70,18 @@ def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
         saved = json.loads(marker.read_text())
     except json.JSONDecodeError as exc:
         raise ExperimentError(f"--reuse {old}: {marker} is corrupted ({exc})") from None
-    identity = experiment.identity()
+    check_shared(saved, experiment, f"--reuse {old}")
+    return old, saved
+
+
+def check_shared(saved: dict, experiment: Experiment, where: str) -> None:
+    """A clear error (starting with ``where``) unless the saved identity equals ``experiment``'s in
+    every shared key (:data:`SHARED_KEYS`)."""
+    identity = json.loads(json.dumps(experiment.identity()))  # tuples as the JSON lists saved
     differ = [k for k in SHARED_KEYS if saved.get(k) != identity.get(k)]
     if differ:
-        raise ExperimentError(f"--reuse {old}: another experiment (it differs in: {', '.join(differ)}); "
+        raise ExperimentError(f"{where}: another experiment (it differs in: {', '.join(differ)}); "
                               "only methods and learner settings may differ")  # fmt: skip
-    return old, saved
 
 
 def copy_run(source: Path, target: Path) -> None:
@@ -156,3 +162,75 @@ def reuse_cells(
         taken.append(ident)
     log(f"reuse: {len(taken)} finished cells taken from {old}")
     return taken
+
+
+def restore_published(
+    source: str | Path,
+    experiment: Experiment,
+    out: Path,
+    jobs: dict[tuple[str, int], RunJob],
+    cell_id: Callable[[str, int], str],
+    rename: dict[str, str] | None = None,
+    runs: range | None = None,
+    log: Callable[[str], None] = print,
+) -> list[str]:
+    """Writes into ``out``/cells the cells of a published results folder SOURCE (its
+    ``experiment.json`` and ``results.json``, as in docs/results) for the jobs of ``runs`` (default:
+    all) that ``out`` has not finished; returns their ids. For an output directory lost with its
+    machine: a resume then computes only the rest.
+
+    The rules of :func:`reuse_cells`, but for the demonstrations, which SOURCE does not hold (they
+    are made from the shared seed and expert): the identity in the shared keys, the method's
+    definition or resolved learner settings (``rename``: take NEW's cells from SOURCE's OLD), and
+    each run's test arenas (a method that is another computation is left to be computed, and
+    said). A restored cell records ``restored_from`` (and ``reused_as`` when
+    renamed) and has no ``seconds`` (it was not timed here) and no training run in ``out``/runs.
+    """
+    from nirl_mj.data.atomic import write_text
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.experiments.executors import CellStore
+
+    source, rename = Path(source), rename or {}
+    try:
+        saved = json.loads((source / EXPERIMENT_FILE).read_text())
+        published = json.loads((source / "results.json").read_text())["cells"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ExperimentError(f"{source}: not a published experiment (experiment.json and results.json "
+                              f"with its cells): {exc}") from None  # fmt: skip
+    check_shared(saved, experiment, str(source))
+    identity = experiment.identity()
+    old_methods = {m["name"]: m for m in saved.get("methods", [])}
+    new_methods = {m["name"]: m for m in identity["methods"]}
+    unknown = sorted(set(rename) - set(new_methods))
+    if unknown:
+        raise ExperimentError(f"rename {', '.join(unknown)}: not a method of this experiment "
+                              f"({', '.join(new_methods)})")  # fmt: skip
+    old_learners, new_learners = saved.get("learners", {}), identity["learners"]
+    demo_seeds = {t.arena_seed for t in load_dataset(out / "demos.npz")}
+    store, restored, arenas, other = CellStore(out / "cells"), [], {}, set()
+    for (name, run), job in jobs.items():
+        wanted = rename.get(name, name)
+        if runs is not None and run not in runs:
+            continue
+        if cell_id(wanted, run) not in published or store.load(cell_id(name, run)) is not None:
+            continue
+        if wanted not in old_sources(name, old_methods, new_methods, old_learners, new_learners):
+            other.add(f"{name} (from {wanted})" if wanted != name else name)
+            continue
+        if run not in arenas:
+            seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
+            arenas[run] = seeds == list(job.test_seeds)
+        if not arenas[run]:
+            raise ExperimentError(f"{source}: run {run}'s test arenas differ from {out}'s")
+        result = {**published[cell_id(wanted, run)], "method": name}
+        record = {"id": cell_id(name, run), "result": result, "restored_from": str(source / "results.json")}
+        if wanted != name:
+            record["reused_as"] = wanted
+        store.directory.mkdir(parents=True, exist_ok=True)
+        write_text(store.path(record["id"]), json.dumps(record, indent=1))
+        restored.append(record["id"])
+    if other:
+        names = ", ".join(sorted(other))
+        log(f"restore: not taken, another definition or learner settings in {source}: {names}")
+    log(f"restore: {len(restored)} finished cells taken from {source}")
+    return restored

@@ -1,0 +1,55 @@
+"""Restores a compare experiment's finished cells from its published results, so that an output
+directory lost with its machine is resumed instead of recomputed.
+
+    python docs/scripts/restore_cells.py TASK OUT SOURCE [--runs A-B] [--rename NEW=OLD ...]
+    (SOURCE: a published results folder such as docs/results/table1_extended, which holds the
+    experiment's experiment.json and results.json)
+
+OUT is opened (or created) as ``nirl-mj compare --task TASK --out OUT`` opens it, which makes its
+demonstrations if they are missing; then the cells are taken by
+``nirl_mj.experiments.reuse.restore_published`` (the rules of ``compare --reuse``: the same identity
+in the shared keys, the same definition or learner settings, the same test arenas per run). A
+restored cell records ``restored_from`` and has no ``seconds`` and no training run. Resume with the
+same compare command afterwards: it computes only the cells left.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from nirl_mj.experiments.compare import cell_id
+from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.protocol import Execution, prepare
+from nirl_mj.experiments.reuse import restore_published
+
+
+def run_range(text: str) -> range:
+    """``"A-B"`` (both included) or ``"A"`` as a range of run indices."""
+    first, _, last = text.partition("-")
+    try:
+        return range(int(first), int(last or first) + 1)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--runs {text!r}: give A-B or A (run indices)") from None
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("task", type=Path)
+    parser.add_argument("out", type=Path)
+    parser.add_argument("source", type=Path)
+    parser.add_argument("--runs", type=run_range, help="A-B: only these runs (default: every run)")
+    parser.add_argument("--rename", action="append", default=[], metavar="NEW=OLD",
+                        help="take NEW's cells from SOURCE's method OLD (same learner settings)")  # fmt: skip
+    args = parser.parse_args()
+    bad = [pair for pair in args.rename if "=" not in pair]
+    if bad:
+        parser.error(f"--rename {bad[0]}: give NEW=OLD (method names)")
+    experiment = load_experiment(args.task, kind="compare")
+    out, jobs = prepare(experiment, args.out, Execution(), print)
+    rename = dict(pair.split("=", 1) for pair in args.rename)
+    restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
+
+
+if __name__ == "__main__":
+    main()
