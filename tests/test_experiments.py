@@ -570,7 +570,9 @@ def test_reuse_takes_the_same_cells_of_an_earlier_comparison_and_computes_the_re
 def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_computes_the_rest(tmp_path):
     """docs/scripts/restore_cells.py's function: a published results folder (experiment.json and
     results.json alone) gives back the runs asked, renamed where told; the resume then computes the
-    rest and the table is the published one. Another experiment or an unknown rename is refused."""
+    rest and the table is the published one. Another experiment, other test arenas, a rename naming
+    a method neither side holds, or runs outside the experiment are refused before anything is
+    written; another computation or an interrupted training run is left to be computed."""
     from nirl_mj.experiments.compare import cell_id
     from nirl_mj.experiments.protocol import Execution, prepare
     from nirl_mj.experiments.reuse import restore_published
@@ -590,6 +592,31 @@ def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_compu
     experiment, lost = load_experiment(new_spec), tmp_path / "lost"
     out, jobs = prepare(experiment, lost, Execution("serial"), lambda _: None)
     said = []
+    # Refused before anything is written: run 1's test arenas differ (run 0's would be taken).
+    moved = {
+        k: dataclasses.replace(j, test_seeds=j.test_seeds[::-1]) if k[1] == 1 else j for k, j in jobs.items()
+    }
+    with pytest.raises(ExperimentError, match="run 1's test arenas differ.*nothing restored"):
+        restore_published(published, experiment, out, moved, cell_id, {"NIRL": "NIRL-policy"})
+    assert not list((lost / "cells").glob("*.json"))
+    with pytest.raises(ExperimentError, match="GAIL is not a method of"):
+        restore_published(published, experiment, out, jobs, cell_id, {"NIRL": "GAIL"})
+    with pytest.raises(ExperimentError, match="none is a run of this experiment"):
+        restore_published(published, experiment, out, jobs, cell_id, runs=range(5, 7))
+    # rule's cells are not NIRL's computation; an interrupted training run is left to the resume.
+    assert restore_published(
+        published, experiment, out, jobs, cell_id, {"NIRL": "rule"}, range(1), said.append
+    ) == ["rule-run000"]
+    assert "not taken, another definition or learner settings" in said[0] and "NIRL (from rule)" in said[0]
+    (lost / "cells" / "rule-run000.json").unlink()
+    interrupted = Path(jobs["NIRL", 1].run_dir)
+    interrupted.mkdir(parents=True)
+    assert restore_published(
+        published, experiment, out, jobs, cell_id, {"NIRL": "NIRL-policy"}, range(1, 2)
+    ) == ["rule-run001"]
+    interrupted.rmdir()
+    (lost / "cells" / "rule-run001.json").unlink()
+    said.clear()
     taken = restore_published(
         published, experiment, out, jobs, cell_id, {"NIRL": "NIRL-policy"}, range(1), said.append
     )
@@ -600,7 +627,7 @@ def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_compu
         "NIRL",
         False,
     )
-    assert record["restored_from"] == str(published / "results.json")
+    assert record["restored_from"] == str(published.resolve() / "results.json")
     # Without the rename, the published NIRL-policy is not NIRL; rule's run 1 is taken.
     assert restore_published(published, experiment, out, jobs, cell_id, log=said.append) == ["rule-run001"]
     assert main([*run, "--task", str(new_spec), "--out", str(lost)]) == 0  # the resume: NIRL's run 1, forward

@@ -19,7 +19,7 @@ import argparse
 from pathlib import Path
 
 from nirl_mj.experiments.compare import cell_id
-from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.definition import ExperimentError, load_experiment
 from nirl_mj.experiments.protocol import Execution, prepare
 from nirl_mj.experiments.reuse import restore_published
 
@@ -45,10 +45,13 @@ def main() -> None:
     bad = [pair for pair in args.rename if "=" not in pair]
     if bad:
         parser.error(f"--rename {bad[0]}: give NEW=OLD (method names)")
-    experiment = load_experiment(args.task, kind="compare")
-    out, jobs = prepare(experiment, args.out, Execution(), print)
     rename = dict(pair.split("=", 1) for pair in args.rename)
-    restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
+    try:
+        experiment = load_experiment(args.task, kind="compare")
+        out, jobs = prepare(experiment, args.out, Execution(), print)
+        restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
+    except ExperimentError as exc:
+        parser.exit(2, f"restore_cells: {exc}\n")
 
 
 if __name__ == "__main__":

@@ -74,10 +74,16 @@ def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
     return old, saved
 
 
+def saved_form(experiment: Experiment) -> dict:
+    """``experiment``'s identity as it reads back from its saved JSON (tuples as lists), so that it
+    compares equal with a saved identity wherever the two are the same."""
+    return json.loads(json.dumps(experiment.identity()))
+
+
 def check_shared(saved: dict, experiment: Experiment, where: str) -> None:
     """A clear error (starting with ``where``) unless the saved identity equals ``experiment``'s in
     every shared key (:data:`SHARED_KEYS`)."""
-    identity = json.loads(json.dumps(experiment.identity()))  # tuples as the JSON lists saved
+    identity = saved_form(experiment)
     differ = [k for k in SHARED_KEYS if saved.get(k) != identity.get(k)]
     if differ:
         raise ExperimentError(f"{where}: another experiment (it differs in: {', '.join(differ)}); "
@@ -128,7 +134,7 @@ def reuse_cells(
         raise ExperimentError(f"--reuse {old} is the output directory itself; give an earlier one")
     if not same_arrays(old / "demos.npz", out / "demos.npz"):
         raise ExperimentError(f"--reuse {old}: its demonstrations differ from {out / 'demos.npz'}")
-    identity = experiment.identity()
+    identity = saved_form(experiment)
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
     new_methods = {m["name"]: m for m in identity["methods"]}
     old_learners, new_learners = saved.get("learners", {}), identity["learners"]
@@ -182,15 +188,19 @@ def restore_published(
     The rules of :func:`reuse_cells`, but for the demonstrations, which SOURCE does not hold (they
     are made from the shared seed and expert): the identity in the shared keys, the method's
     definition or resolved learner settings (``rename``: take NEW's cells from SOURCE's OLD), and
-    each run's test arenas (a method that is another computation is left to be computed, and
-    said). A restored cell records ``restored_from`` (and ``reused_as`` when
-    renamed) and has no ``seconds`` (it was not timed here) and no training run in ``out``/runs.
+    each run's test arenas. A method that is another computation is left to be computed, and said;
+    a cell whose training run ``out`` already holds (an interrupted one) too. Every check is made
+    before anything is written: differing test arenas, a ``rename`` naming a method that neither
+    side holds, or ``runs`` outside the experiment are clear errors that leave ``out`` as it was.
+    A restored cell records ``restored_from`` (the absolute path of SOURCE's results.json, and
+    ``reused_as`` when renamed) and has no ``seconds`` (it was not timed here) and no training run
+    in ``out``/runs.
     """
     from nirl_mj.data.atomic import write_text
     from nirl_mj.data.dataset import load_dataset
     from nirl_mj.experiments.executors import CellStore
 
-    source, rename = Path(source), rename or {}
+    source, rename = Path(source).resolve(), rename or {}
     try:
         saved = json.loads((source / EXPERIMENT_FILE).read_text())
         published = json.loads((source / "results.json").read_text())["cells"]
@@ -198,16 +208,23 @@ def restore_published(
         raise ExperimentError(f"{source}: not a published experiment (experiment.json and results.json "
                               f"with its cells): {exc}") from None  # fmt: skip
     check_shared(saved, experiment, str(source))
-    identity = experiment.identity()
+    identity = saved_form(experiment)
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
     new_methods = {m["name"]: m for m in identity["methods"]}
-    unknown = sorted(set(rename) - set(new_methods))
-    if unknown:
-        raise ExperimentError(f"rename {', '.join(unknown)}: not a method of this experiment "
-                              f"({', '.join(new_methods)})")  # fmt: skip
+    for new, old in rename.items():
+        if new not in new_methods:
+            raise ExperimentError(f"rename {new}={old}: {new} is not a method of this experiment "
+                                  f"({', '.join(new_methods)})")  # fmt: skip
+        if old not in old_methods:
+            raise ExperimentError(f"rename {new}={old}: {old} is not a method of {source} "
+                                  f"({', '.join(old_methods)})")  # fmt: skip
+    planned = sorted({run for _, run in jobs})
+    if runs is not None and not set(runs) & set(planned):
+        raise ExperimentError(f"runs {runs.start}-{runs.stop - 1}: none is a run of this experiment "
+                              f"(runs {planned[0]}-{planned[-1]})")  # fmt: skip
     old_learners, new_learners = saved.get("learners", {}), identity["learners"]
     demo_seeds = {t.arena_seed for t in load_dataset(out / "demos.npz")}
-    store, restored, arenas, other = CellStore(out / "cells"), [], {}, set()
+    store, chosen, arenas, other = CellStore(out / "cells"), [], {}, set()
     for (name, run), job in jobs.items():
         wanted = rename.get(name, name)
         if runs is not None and run not in runs:
@@ -217,20 +234,23 @@ def restore_published(
         if wanted not in old_sources(name, old_methods, new_methods, old_learners, new_learners):
             other.add(f"{name} (from {wanted})" if wanted != name else name)
             continue
+        if Path(job.run_dir).exists():
+            continue
         if run not in arenas:
             seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
             arenas[run] = seeds == list(job.test_seeds)
         if not arenas[run]:
-            raise ExperimentError(f"{source}: run {run}'s test arenas differ from {out}'s")
+            raise ExperimentError(f"{source}: run {run}'s test arenas differ from {out}'s; nothing restored")
+        chosen.append((name, wanted, run))
+    for name, wanted, run in chosen:
         result = {**published[cell_id(wanted, run)], "method": name}
         record = {"id": cell_id(name, run), "result": result, "restored_from": str(source / "results.json")}
         if wanted != name:
             record["reused_as"] = wanted
         store.directory.mkdir(parents=True, exist_ok=True)
         write_text(store.path(record["id"]), json.dumps(record, indent=1))
-        restored.append(record["id"])
     if other:
         names = ", ".join(sorted(other))
         log(f"restore: not taken, another definition or learner settings in {source}: {names}")
-    log(f"restore: {len(restored)} finished cells taken from {source}")
-    return restored
+    log(f"restore: {len(chosen)} finished cells taken from {source}")
+    return [cell_id(name, run) for name, _, run in chosen]
