@@ -30,6 +30,9 @@ def main(out: Path, methods: list[str]) -> None:
     actions = actions.astype(int)
     print(f"{len(actions)} demonstrated pairs, {np.mean(actions == 0):.1%} of them forward")
     for method in methods:
+        if not (out / "runs" / method).is_dir():
+            trained = sorted(p.name for p in (out / "runs").glob("*") if p.is_dir())
+            raise SystemExit(f"{method}: no training runs in {out / 'runs'} (it holds: {', '.join(trained)})")
         runs = sorted((out / "runs" / method).iterdir(), key=lambda p: int(p.name))
         for run in runs:
             if not (run / "reward.json").exists():  # still training

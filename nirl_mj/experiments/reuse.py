@@ -99,18 +99,41 @@ def copy_run(source: Path, target: Path) -> None:
     os.replace(temporary, target)
 
 
-def old_sources(
-    name: str, old_methods: dict, new_methods: dict, old_learners: dict, new_learners: dict
-) -> list[str]:
-    """The methods of OLD whose cells are the new method ``name``'s computation, best first. A
-    method that does not train: ``name`` with the same definition. A trained learner: every method
-    of OLD with the same resolved learner settings (they name the variant, the algorithm and every
-    setting), ``name`` first, then the others by name (a renamed variant)."""
-    settings = new_learners.get(name)
-    if settings is None:  # not a trained learner: its definition is what it computes
-        return [name] if old_methods.get(name) == new_methods[name] else []
-    candidates = dict.fromkeys([name, *sorted(old_learners)])  # ordered, without repeats
-    return [m for m in candidates if old_learners.get(m) == settings]
+def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
+    """For each method of ``experiment``, the methods of the saved experiment whose cells are its
+    computation, best first. A method that does not train: its own name with the same definition.
+    A trained learner: every saved method with the same resolved learner settings (they name the
+    variant, the algorithm and every setting), its own name first, then the others by name (a
+    renamed variant)."""
+    identity = saved_form(experiment)
+    old_methods = {m["name"]: m for m in saved.get("methods", [])}
+    old_learners = saved.get("learners", {})
+    sources = {}
+    for method in identity["methods"]:
+        name, settings = method["name"], identity["learners"].get(method["name"])
+        if settings is None:  # not a trained learner: its definition is what it computes
+            sources[name] = [name] if old_methods.get(name) == method else []
+        else:
+            candidates = dict.fromkeys([name, *sorted(old_learners)])  # ordered, without repeats
+            sources[name] = [m for m in candidates if old_learners.get(m) == settings]
+    return sources
+
+
+def same_tests(saved: dict, experiment: Experiment, demos: Path) -> Callable[[RunJob], bool]:
+    """A check of whether the saved experiment gave a job's run the job's test arenas (computed
+    once per run: the runs of one seed share them); ``demos`` the experiment's demonstrations."""
+    from nirl_mj.data.dataset import load_dataset
+
+    demo_seeds = {t.arena_seed for t in load_dataset(demos)}
+    known: dict[int, bool] = {}
+
+    def check(job: RunJob) -> bool:
+        if job.run not in known:
+            seeds = old_test_seeds(saved, run_seed(experiment, job.run), experiment.tests, demo_seeds)
+            known[job.run] = seeds == list(job.test_seeds)
+        return known[job.run]
+
+    return check
 
 
 def reuse_cells(
@@ -126,7 +149,6 @@ def reuse_cells(
     ``out`` already holds (an interrupted one) is left to be computed. A clear error if OLD is not
     an output directory that shares the experiment's keys."""
     from nirl_mj.data.atomic import write_text
-    from nirl_mj.data.dataset import load_dataset
     from nirl_mj.experiments.executors import CellStore
 
     old, saved = read_old(old, experiment)
@@ -134,27 +156,16 @@ def reuse_cells(
         raise ExperimentError(f"--reuse {old} is the output directory itself; give an earlier one")
     if not same_arrays(old / "demos.npz", out / "demos.npz"):
         raise ExperimentError(f"--reuse {old}: its demonstrations differ from {out / 'demos.npz'}")
-    identity = saved_form(experiment)
-    old_methods = {m["name"]: m for m in saved.get("methods", [])}
-    new_methods = {m["name"]: m for m in identity["methods"]}
-    old_learners, new_learners = saved.get("learners", {}), identity["learners"]
-    demo_seeds = {t.arena_seed for t in load_dataset(out / "demos.npz")}
-    source, target = CellStore(old / "cells"), CellStore(out / "cells")
-    taken, tests_match = [], {}
-    sources = {
-        name: old_sources(name, old_methods, new_methods, old_learners, new_learners) for name in new_methods
-    }
+    sources, tests_match = method_sources(saved, experiment), same_tests(saved, experiment, out / "demos.npz")
+    source, target, taken = CellStore(old / "cells"), CellStore(out / "cells"), []
     for (name, run), job in jobs.items():
         ident = cell_id(name, run)
         found = [m for m in sources[name] if source.load(cell_id(m, run)) is not None]
         if not found or target.load(ident) is not None:
             continue
         source_name = found[0]
-        if run not in tests_match:
-            seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
-            tests_match[run] = seeds == list(job.test_seeds)
         old_run, new_run = old / "runs" / source_name / str(job.seed), Path(job.run_dir)
-        if not tests_match[run] or new_run.exists():
+        if not tests_match(job) or new_run.exists():
             continue
         if old_run.is_dir():
             copy_run(old_run, new_run)
@@ -197,7 +208,6 @@ def restore_published(
     in ``out``/runs.
     """
     from nirl_mj.data.atomic import write_text
-    from nirl_mj.data.dataset import load_dataset
     from nirl_mj.experiments.executors import CellStore
 
     source, rename = Path(source).resolve(), rename or {}
@@ -208,46 +218,40 @@ def restore_published(
         raise ExperimentError(f"{source}: not a published experiment (experiment.json and results.json "
                               f"with its cells): {exc}") from None  # fmt: skip
     check_shared(saved, experiment, str(source))
-    identity = saved_form(experiment)
-    old_methods = {m["name"]: m for m in saved.get("methods", [])}
-    new_methods = {m["name"]: m for m in identity["methods"]}
+    sources, old_names = method_sources(saved, experiment), [m["name"] for m in saved.get("methods", [])]
     for new, old in rename.items():
-        if new not in new_methods:
+        if new not in sources:
             raise ExperimentError(f"rename {new}={old}: {new} is not a method of this experiment "
-                                  f"({', '.join(new_methods)})")  # fmt: skip
-        if old not in old_methods:
+                                  f"({', '.join(sources)})")  # fmt: skip
+        if old not in old_names:
             raise ExperimentError(f"rename {new}={old}: {old} is not a method of {source} "
-                                  f"({', '.join(old_methods)})")  # fmt: skip
+                                  f"({', '.join(old_names)})")  # fmt: skip
     planned = sorted({run for _, run in jobs})
     if runs is not None and not set(runs) & set(planned):
         raise ExperimentError(f"runs {runs.start}-{runs.stop - 1}: none is a run of this experiment "
                               f"(runs {planned[0]}-{planned[-1]})")  # fmt: skip
-    old_learners, new_learners = saved.get("learners", {}), identity["learners"]
-    demo_seeds = {t.arena_seed for t in load_dataset(out / "demos.npz")}
-    store, chosen, arenas, other = CellStore(out / "cells"), [], {}, set()
+    tests_match, store = same_tests(saved, experiment, out / "demos.npz"), CellStore(out / "cells")
+    chosen, other = [], set()
     for (name, run), job in jobs.items():
         wanted = rename.get(name, name)
         if runs is not None and run not in runs:
             continue
         if cell_id(wanted, run) not in published or store.load(cell_id(name, run)) is not None:
             continue
-        if wanted not in old_sources(name, old_methods, new_methods, old_learners, new_learners):
+        if wanted not in sources[name]:
             other.add(f"{name} (from {wanted})" if wanted != name else name)
             continue
         if Path(job.run_dir).exists():
             continue
-        if run not in arenas:
-            seeds = old_test_seeds(saved, run_seed(experiment, run), experiment.tests, demo_seeds)
-            arenas[run] = seeds == list(job.test_seeds)
-        if not arenas[run]:
+        if not tests_match(job):
             raise ExperimentError(f"{source}: run {run}'s test arenas differ from {out}'s; nothing restored")
         chosen.append((name, wanted, run))
+    store.directory.mkdir(parents=True, exist_ok=True)
     for name, wanted, run in chosen:
         result = {**published[cell_id(wanted, run)], "method": name}
         record = {"id": cell_id(name, run), "result": result, "restored_from": str(source / "results.json")}
         if wanted != name:
             record["reused_as"] = wanted
-        store.directory.mkdir(parents=True, exist_ok=True)
         write_text(store.path(record["id"]), json.dumps(record, indent=1))
     if other:
         names = ", ".join(sorted(other))
