@@ -22,3 +22,15 @@ def progress(trajectories: list[Trajectory]) -> float:
         start, end = (np.hypot(*(t.poses[i, :2] - target)) for i in (0, -1))
         shares.append(1.0 if t.success else (start - end) / start)
     return float(np.mean(shares))
+
+
+def sleeping_cell(pid_file: str) -> int:
+    """An executor cell that writes its process id to ``pid_file`` and then sleeps (for ever, as far
+    as a test goes): the worker an executor test kills the parent of."""
+    import os
+    import time
+
+    with open(pid_file, "w") as f:
+        f.write(str(os.getpid()))
+    time.sleep(600)
+    return 0

@@ -27,6 +27,7 @@ from nirl_mj.experiments.definition import (
 )
 from nirl_mj.experiments.executors import Cell, CellStore, Executor, ExecutorError, run_cells
 from nirl_mj.experiments.stats import paired, summarise_runs, t_interval, wilson
+from nirl_mj.learn.config import LearnerConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -54,8 +55,9 @@ methods = ["NIRL", "rule"]
 obstacles = [3]
 speeds = [1.0, 2.0]
 """
-TABLE1_ROWS = ["NIRL", "NIRL-paper", "NIRL-classifier", "AL", "RE", "SCIRL", "AL-traj", "RE-traj", "GAIL",
-               "AIRL", "DAgger", "BC", "PPO-reward", "forward", "rule"]  # fmt: skip
+TABLE1_ROWS = ["NIRL", "NIRL-last", "NIRL-paper", "NIRL-classifier", "AL", "RE", "SCIRL", "AL-traj",
+               "RE-traj", "GAIL", "AIRL", "BC", "BC-paper", "DAgger", "PPO-reward", "forward",
+               "rule"]  # fmt: skip
 
 
 def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
@@ -70,15 +72,21 @@ def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
 NOT_READ = {"nirl": {"al_expectations", "re_expectations"}, "al": {"matching"}, "re": {"matching"},
             "scirl": {"matching"}}  # fmt: skip
 """Learner settings an algorithm does not read: a change of their default leaves its results as they were."""
-RECORDED = {"table1": ("table1_extended", {}), "table1_nirl": ("nirl_policy", {"NIRL": "NIRL-policy"})}
+RECORDED = {"table1_v2": ("table1_extended", {}), "table1": ("table1_fair", {}),
+            "table1_nirl": ("table1_fair", {})}  # fmt: skip
 """A task file whose recorded outputs (docs/results/...) have another name, and its methods' names
-there. docs/results/table1 is the first Table I (2026-11-22), which tasks/table1.toml has since grown
-out of; tasks/table1_nirl.toml's default was measured as tasks/ablations/nirl_policy.toml."""
+there. docs/results/table1 is the first Table I (2026-11-22); tasks/archive/table1_v2.toml the
+extended one (until 2026-11-26); tasks/table1.toml the fair protocol, and tasks/table1_nirl.toml its
+NIRL row alone."""
+RENAMED_REFERENCES = {"table1_v2": {"BC": {"variant": "paper"}, "DAgger": {"variant": "paper"}},
+                      "fig8": {"BC": {"variant": "paper"}}}  # fmt: skip
+"""A recorded method that does not train whose code has since become a named variant: the task file
+asks for that variant, and its recorded identity held the default's name for it."""
 SHARED = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "obstacles", "speeds")
 
 
 @pytest.mark.parametrize(
-    "task", sorted(p.stem for p in [*ROOT.glob("tasks/*.toml"), *ROOT.glob("tasks/ablations/*.toml")])
+    "task", sorted(p.stem for p in [*ROOT.glob("tasks/*.toml"), *ROOT.glob("tasks/*/*.toml")])
 )
 def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_results(task):
     """A default that changes after an experiment was recorded must not change what its task file
@@ -90,18 +98,21 @@ def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_res
     recorded = ROOT / "docs" / "results" / results / "experiment.json"
     if not recorded.is_file():
         pytest.skip(f"no recorded results for {task}")
-    path = next(p for p in [ROOT / "tasks" / f"{task}.toml", ROOT / "tasks" / "ablations" / f"{task}.toml"]
+    path = next(p for p in [ROOT / "tasks" / f"{task}.toml", *ROOT.glob(f"tasks/*/{task}.toml")]
                 if p.is_file())  # fmt: skip
     saved, now = json.loads(recorded.read_text()), load_experiment(path).identity()
     assert {k: saved.get(k) for k in SHARED} == {k: now.get(k) for k in SHARED}, path.name
     old_methods = {m["name"]: m for m in saved["methods"]}
     for method in now["methods"]:
         if method["name"] not in now["learners"]:
-            assert old_methods.get(method["name"]) == method, f"{path.name}: {method['name']} changed"
+            renamed = RENAMED_REFERENCES.get(task, {}).get(method["name"], {})
+            old = {**old_methods.get(method["name"], {}), **renamed}
+            assert old == method, f"{path.name}: {method['name']} changed"
     assert sorted(saved["learners"]) == sorted(names.get(n, n) for n in now["learners"])
     for name, settings in now["learners"].items():
         ignored = NOT_READ.get(settings["method"], set())
-        old = saved["learners"][names.get(name, name)]
+        # resolved as a run record is: a setting added since takes the value it had before
+        old = LearnerConfig.from_record(saved["learners"][names.get(name, name)]).to_dict()
         changed = {
             k: (v, settings.get(k)) for k, v in old.items() if k not in ignored and settings.get(k) != v
         }
@@ -113,7 +124,12 @@ def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_res
 def test_shipped_experiments_load_full_and_quick():
     table1 = load_experiment(ROOT / "tasks" / "table1.toml")
     assert (table1.kind, table1.runs, table1.tests) == ("compare", 25, 100)
-    assert (table1.demos, table1.expert) == (30, "sensor")
+    assert (table1.demos, table1.expert, table1.demos_per_run, table1.test_domain) == (
+        30,
+        "sensor",
+        True,
+        "final",
+    )
     assert [m.name for m in table1.methods] == TABLE1_ROWS
     assert (table1.task.arena.static_obstacles, table1.task.control.speed) == (20, 2.0)
     paper = {name: tuple(row[k] for k in ("avg", "best", "worst")) for name, row in table1.paper.items()}
@@ -124,7 +140,7 @@ def test_shipped_experiments_load_full_and_quick():
         "GAIL": 2048, "AIRL": 2048, "PPO-reward": 2048}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
     assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
-    assert quick.methods[1].learner_config(quick.config).loop.variant == "paper"
+    assert quick.methods[2].learner_config(quick.config).loop.variant == "paper"
     fig6 = load_experiment(ROOT / "tasks" / "fig6.toml")
     assert (fig6.kind, fig6.obstacles, fig6.speeds) == ("sweep", (5, 10, 20, 30, 40, 50), (1.0, 2.0, 3.0))
     corner = fig6.cell_task(50, 3.0)
@@ -172,7 +188,11 @@ def test_every_shipped_experiment_file_loads_full_and_quick(path):
         ({"methods": ["Mine"], "method": {"Mine": {"kind": "irl", "method": "gail"}}},
          "method.Mine.method = 'gail': accepted: nirl"),
         ({"methods": ["Mine"], "method": {"Mine": {"kind": "bc", "config": {"eta": 1.0}}}},
-         'method.Mine: variant, method and config apply to kind = "irl" only'),
+         'method.Mine: method and config apply to kind = "irl" only'),
+        ({"methods": ["Mine"], "method": {"Mine": {"kind": "rule", "variant": "paper"}}},
+         'method.Mine: variant applies to kind = "irl", "bc" and "dagger" only'),
+        ({"methods": ["NIRL"], "test_domain": "dev"}, "test_domain = 'dev': accepted: test, final"),
+        ({"methods": ["NIRL"], "demos": {"per_run": 1}}, "demos.per_run = 1: expected true or false"),
         ({"method": {"Mine": {"kind": "bc"}}}, "method: Mine defined but not in methods"),
         ({"quick": {"kind": "sweep"}}, "quick: unknown key(s) kind; accepted: description"),
         ({"kind": "sweep", "obstacles": [5], "speeds": [9.0]}, "cell (5 obstacles, 9.0 m/s): "),
@@ -310,7 +330,7 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     e = dataclasses.replace(e, config={**e.config, "episodes": 2})
     out = protocol.open_output(tmp_path / "out", e)
     demos = protocol.ensure_demos(out, e, 1, lambda _: None)
-    job = protocol.run_jobs(e, out, demos)["NIRL", 0]
+    job = protocol.run_jobs(e, out, [demos])["NIRL", 0]
     reference = dataclasses.replace(job, run_dir=str(tmp_path / "reference"))
     protocol.ensure_trained(reference)
 
@@ -410,6 +430,41 @@ def test_killed_sweep_resumes_without_recomputing_finished_cells(serial_sweep, t
     assert cell_results(out) == reference
 
 
+def test_a_killed_experiment_leaves_no_worker_writing(tmp_path):
+    """A killed parent (SIGKILL: no clean-up runs) takes its local workers with it, so a restarted
+    command is the only writer of its directory: a worker notices within a second that its parent
+    has gone and ends (the 120 s below only bound a test that would otherwise hang)."""
+    pid_file = tmp_path / "worker.pid"
+    script = (
+        "import sys; sys.path.insert(0, {tests!r})\n"
+        "from helpers import sleeping_cell\n"
+        "from nirl_mj.experiments.executors import Cell, run_cells\n"
+        "run_cells([Cell('sleep', sleeping_cell, ({pid!r},))], 'local', workers=1)\n"
+    ).format(tests=str(ROOT / "tests"), pid=str(pid_file))
+    parent = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT)
+    deadline = time.monotonic() + 120
+    while not pid_file.is_file() or not pid_file.read_text():
+        assert time.monotonic() < deadline and parent.poll() is None, "the worker did not start"
+        time.sleep(0.05)
+    worker = int(pid_file.read_text())
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+
+    def alive(pid: int) -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        # reaped by init once it exits; a zombie still answers signal 0
+        return Path(f"/proc/{pid}/stat").is_file() and Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+
+    while alive(worker):
+        if time.monotonic() > deadline:
+            os.kill(worker, signal.SIGKILL)
+            pytest.fail("the worker outlived its killed parent")
+        time.sleep(0.1)
+
+
 # -- compare ----------------------------------------------------------------------------------------
 
 
@@ -491,6 +546,61 @@ worst = 43
         == 2
     )
     assert "holds no started experiment" in capsys.readouterr().err
+
+
+def test_per_run_demonstrations_final_arenas_and_only(tmp_path, capsys):
+    """[demos] per_run: run r learns from its own demonstrations (seeded seed + r), every method of
+    the run from the same file; test_domain = "final" draws other test arenas than the development
+    domain; --only computes the named methods' cells and reports the others as they are stored."""
+    head = (
+        'kind = "compare"\nruns = 2\ntests = 2\ntest_domain = "final"\nmethods = ["BC", "rule", "forward"]\n'
+    )
+    spec, out = tmp_path / "tiny.toml", tmp_path / "out"
+    spec.write_text(head + TINY.replace("[demos]\n", "[demos]\nper_run = true\n"))
+    args = ["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]
+    assert main([*args, "--only", "BC,rule", "--json"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert {n: m["runs"] for n, m in last["methods"].items()} == {"BC": 2, "rule": 2, "forward": 0}
+    assert sorted(p.name for p in (out / "demos").iterdir()) == ["run000.npz", "run001.npz"]
+    from nirl_mj.data.dataset import load_dataset
+
+    seeds = [{t.arena_seed for t in load_dataset(out / "demos" / f"run{r:03d}.npz")} for r in (0, 1)]
+    assert not seeds[0] & seeds[1]
+    e = load_experiment(spec)
+    jobs = protocol.run_jobs(e, out, {r: protocol.demos_path(out, e, r) for r in (0, 1)})
+    assert {jobs[m, 1].demos_path for m in ("BC", "rule")} == {str(out / "demos" / "run001.npz")}
+    development = protocol.run_test_seeds(dataclasses.replace(e, test_domain="test"), 0, seeds[0])
+    assert not set(jobs["BC", 0].test_seeds) & set(development)
+    # the rest later: the finished cells are kept, the new ones computed
+    assert main([*args, "--only", "forward", "--json"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert {m["runs"] for m in last["methods"].values()} == {2}
+    assert main([*args, "--only", "PPO"]) == 2
+    assert "--only PPO: not a method of tiny" in capsys.readouterr().err
+    assert main([*args, "--reuse", str(out)]) == 2
+    assert "draws them per run" in capsys.readouterr().err
+
+
+def test_an_experiment_grows_by_methods_that_keep_its_test_arenas(tmp_path):
+    """A method added to an experiment file joins its output directory when every finished cell
+    stays valid: the saved methods unchanged, and the new learner visiting no arena the old ones
+    did not (so the runs' test arenas stay the same). Anything else is refused."""
+    base = 'kind = "compare"\nruns = 2\ntests = 2\n'
+
+    def experiment(methods: list[str], extra: str = ""):
+        spec = tmp_path / "grow.toml"
+        spec.write_text(base + f"methods = {json.dumps(methods)}\n" + extra + TINY)
+        return load_experiment(spec)
+
+    out = protocol.open_output(tmp_path / "out", experiment(["NIRL", "rule"]))
+    assert protocol.open_output(out, experiment(["NIRL", "rule", "NIRL-last", "BC"])) == out
+    assert [m["name"] for m in json.loads((out / "experiment.json").read_text())["methods"]] == [
+        "NIRL", "rule", "NIRL-last", "BC"]  # fmt: skip
+    longer = '[method.long]\nkind = "irl"\nconfig = { episodes = 3 }\n'
+    with pytest.raises(ExperimentError, match="methods may be added"):
+        protocol.open_output(out, experiment(["NIRL", "rule", "NIRL-last", "BC", "long"], longer))
+    with pytest.raises(ExperimentError, match="differs in: learners, methods"):
+        protocol.open_output(out, experiment(["NIRL", "rule"]))
 
 
 def test_fig8_strip_is_written_from_the_first_run(tmp_path):

@@ -87,8 +87,9 @@ def test_n_step_returns_stop_at_the_end_of_each_trajectory():
 
 
 def test_n_step_targets_in_the_loop_follow_the_trajectory():
+    # the outcome reading: the rows' own terminal_value is the value of their end
     config = LearnerConfig.preset("default", reward_source="constant", bootstrap="q", alpha=1.0, gamma=0.5,
-                                  n_step=2)  # fmt: skip
+                                  n_step=2, terminal_value="outcome")  # fmt: skip
     learner = IrlLoop(config, demos(), seed=0)
     q = network.q_values(learner.net, learner.demo_inputs[:1])[0]  # every state here is PHI
     t = Transitions.concat([transitions(next_action=4, terminal=False)] * 2)

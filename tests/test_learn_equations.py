@@ -186,9 +186,11 @@ def test_cost_gradient_matches_finite_differences():
         np.testing.assert_allclose(grad.numpy(), numeric, rtol=1e-6, atol=1e-9)
 
 
-def test_explicit_backpropagation_equals_autograd():
+@pytest.mark.parametrize("weighted", [False, True])
+def test_explicit_backpropagation_equals_autograd(weighted):
     """The training step's hand-written backpropagation of eq. 15 against autograd (checked
-    against finite differences above), with repeated actions in the batch."""
+    against finite differences above), with repeated actions in the batch; also with per-pair
+    weights (behaviour cloning's class balance)."""
     from nirl_mj.learn.network import _as_arrays, _gradients
 
     rng = np.random.default_rng(5)
@@ -196,10 +198,11 @@ def test_explicit_backpropagation_equals_autograd():
     phi = rng.uniform(0, 3, size=(9, 16))
     actions = np.array([0, 0, 1, 5, 5, 5, 2, 3, 0])
     targets = rng.uniform(0, 1, size=9)
-    cost = cross_entropy_cost(net, phi, actions, targets, 0.3)
+    w = rng.uniform(0.2, 3.0, size=9) if weighted else None
+    cost = cross_entropy_cost(net, phi, actions, targets, 0.3, w)
     g1, g2 = torch.autograd.grad(cost, (net.W1, net.W2))
     weights = (net.W1.detach().numpy(), net.W2.detach().numpy())
-    value, h1, h2 = _gradients(*weights, *_as_arrays(phi, actions, targets), 0.3)
+    value, h1, h2 = _gradients(*weights, *_as_arrays(phi, actions, targets), 0.3, w)
     assert value == pytest.approx(float(cost.detach()), rel=1e-13)
     np.testing.assert_allclose(h1, g1.numpy(), rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(h2, g2.numpy(), rtol=1e-12, atol=1e-15)

@@ -107,9 +107,32 @@ def test_trained_policy_and_named_reward_are_usable(tmp_path, demos):
     assert reward.reward(phi, 4) == pytest.approx(r_all[0, 4])
 
 
+def test_the_default_selection_runs_no_validation_episode(tmp_path, demos, monkeypatch):
+    """The default chooses its policy without the task's success: no validation arena is driven
+    (``evaluate`` is the only way a training run measures success)."""
+    import nirl_mj.experiments.training as training
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a validation episode ran")
+
+    monkeypatch.setattr(training, "evaluate", refuse)
+    record = train(tmp_path / "run", TINY, demos, tiny_config(episodes=3, validate_every=1), seed=0)
+    assert record["selection"]["rule"] == "demo_balanced" and "task_success_selection" not in record["reads"]
+    monkeypatch.undo()
+    with pytest.raises(AssertionError, match="a validation episode ran"):
+        monkeypatch.setattr(training, "evaluate", refuse)
+        train(tmp_path / "oracle", TINY, demos, tiny_config(episodes=1, selection="validation"), seed=0)
+
+
 def test_any_kept_iteration_and_the_second_validation_round(tmp_path, demos):
     run = tmp_path / "run"
-    record = train(run, TINY, demos, tiny_config(episodes=4, validate_every=1, final_candidates=2), seed=0)
+    record = train(
+        run,
+        TINY,
+        demos,
+        tiny_config(episodes=4, validate_every=1, final_candidates=2, selection="validation"),
+        seed=0,
+    )
     selection = record["selection"]
     # the two best first-round policies were re-validated on as many fresh validation arenas
     assert len(selection["candidates"]) == 2 and selection["iteration"] in map(int, selection["candidates"])

@@ -404,8 +404,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     if args.runs is not None:
         experiment = dataclasses.replace(experiment, runs=args.runs)
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
+    only = tuple(n.strip() for n in (getattr(args, "only", None) or "").split(",") if n.strip())
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
-                          getattr(args, "reuse", None))  # fmt: skip
+                          getattr(args, "reuse", None), only)  # fmt: skip
     bars: list[tqdm] = []  # made once the number of cells is known
 
     def log(text: str) -> None:

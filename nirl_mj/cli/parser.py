@@ -95,6 +95,9 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         p.add_argument("--reuse", default=None, metavar="OLD",
                        help="first copy the cells an earlier output directory OLD finished as the same "
                        "computation (same method settings, demonstrations and test arenas)")  # fmt: skip
+        p.add_argument("--only", default=None, metavar="NAMES",
+                       help="comma-separated methods: compute only their cells; the table shows the "
+                       "others' finished cells (not part of an experiment's identity)")  # fmt: skip
 
 
 # fmt: off

@@ -6,8 +6,10 @@ the experiment's demonstrations (trainable methods; resumable in
 of run r, the same for every method (``nirl_mj.experiments.protocol``). Per method: average
 / best / worst success over the runs with a 95 % Student-t interval of the
 average (``nirl_mj.experiments.stats``), mean collision, timeout and physics-error rates,
-SPL; every run's success; and the first method listed minus each other, paired by run (the runs
-of one seed share their training seed and test arenas, so the pairing removes the arenas' luck).
+SPL, what it reads (``nirl_mj.experiments.reads``); every run's success; and the first method
+listed minus each other, paired by run (the runs of one seed share their training seed,
+demonstrations and test arenas, so the pairing removes their luck). ``--only`` computes some
+methods' cells and reports the others as stored.
 Outputs in OUT:
 
 - ``table.md``, ``table.csv``, ``table.png`` (bar chart next to the paper's);
@@ -25,7 +27,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_figure, write_text
-from nirl_mj.experiments.definition import Experiment
+from nirl_mj.experiments.definition import Experiment, ExperimentError
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
     Execution,
@@ -36,6 +38,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     prepare,
 )
+from nirl_mj.experiments.reads import is_reference, method_reads
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
@@ -63,6 +66,10 @@ def run_compare(
     ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
     """
     execution = execution or Execution()
+    unknown = sorted(set(execution.only) - {m.name for m in experiment.methods})
+    if unknown:  # before anything is made in OUT
+        raise ExperimentError(f"--only {', '.join(unknown)}: not a method of {experiment.name} "
+                              f"({', '.join(m.name for m in experiment.methods)})")  # fmt: skip
     if execution.reuse:
         from nirl_mj.experiments.reuse import read_old, reuse_cells
 
@@ -71,10 +78,16 @@ def run_compare(
     if execution.reuse:
         reuse_cells(execution.reuse, experiment, out, jobs, cell_id, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
+    left_out = {cell_id(m, r) for m, r in jobs if execution.only and m not in execution.only}
+    others = [c for c in cells if c.id in left_out]
+    cells = [c for c in cells if c.id not in left_out]
     with execution.start(out, log) as runner:
         if on_start:
             on_start(len(cells), runner.finished(cells))
         report = runner.run(cells, on_done)
+        # the methods left out by --only: their finished cells, as a report shows them
+        report.results |= {c.id: r for c in others if (r := runner.store.load(c.id)) is not None}
+        runner.unfinished += sum(c.id not in report.results for c in others)
     summary = summarise(experiment, report.results)
     summary["failures"] = failure_rows(report.failures)
     summary["unfinished"] = runner.unfinished
@@ -98,6 +111,7 @@ def summarise(experiment: Experiment, results: dict) -> dict:
                   if (i := cell_id(method.name, r)) in results}  # fmt: skip
         rows = [results[cell_id(method.name, r)] for r in by_run]
         methods[method.name] = {
+            "reads": method_reads(method, experiment.config),
             **summarise_runs(rows),
             "failed": experiment.runs - len(rows),  # failed, or unfinished in a --report
             "paper": {k: v / 100 for k, v in experiment.paper.get(method.name, {}).items()} or None,
@@ -140,23 +154,32 @@ def markdown_table(summary: dict) -> str:
     """The results next to the paper's Table I, percent."""
     lines = [
         "| method | runs | success avg [95 % CI] | best | worst | collision | timeout | SPL "
-        "| paper avg / best / worst |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| paper avg / best / worst | reads |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in summary["methods"].items():
         paper = s["paper"] or {}
         paper_text = " / ".join(_pct(paper.get(k), 0) for k in ("avg", "best", "worst")) if paper else "-"
+        reads = reads_text(s.get("reads"))
         runs = f"{s['runs']}" + (f" ({s['failed']} missing)" if s["failed"] else "")
         if not s["runs"]:
-            lines.append(f"| {name} | {runs} | - | - | - | - | - | - | {paper_text} |")
+            lines.append(f"| {name} | {runs} | - | - | - | - | - | - | {paper_text} | {reads} |")
             continue
         ci = s["ci"]
         ci_text = f" [{_pct(ci[0])}, {_pct(ci[1])}]" if ci[0] is not None else ""
         lines.append(
             f"| {name} | {runs} | {_pct(s['avg'])}{ci_text} | {_pct(s['best'], 0)} | {_pct(s['worst'], 0)} "
-            f"| {_pct(s['collision'])} | {_pct(s['timeout'])} | {s['spl']:.2f} | {paper_text} |"
+            f"| {_pct(s['collision'])} | {_pct(s['timeout'])} | {s['spl']:.2f} | {paper_text} | {reads} |"
         )
     return "\n".join(lines)
+
+
+def reads_text(reads: list[str] | None) -> str:
+    """A method's ``reads`` for a table cell; a reference's (it reads a task signal) in bold."""
+    if reads is None:  # a summary written before reads were recorded
+        return "?"
+    text = ", ".join(reads) or "nothing"
+    return f"**reference:** {text}" if is_reference(reads) else text
 
 
 def runs_section(summary: dict) -> str:
@@ -262,6 +285,15 @@ def _extremes(ax, x: float, row: dict, face: str, label: str | None) -> None:
             markerfacecolor=face, markeredgecolor="tab:red", label=label)  # fmt: skip
 
 
+def demos_text(experiment: Experiment) -> str:
+    """Which demonstrations the runs learn from, for a report."""
+    if experiment.demos_per_run:
+        return (
+            f"{experiment.demos} demonstrations of its own (run r's seeded seed + r, shared by its methods)"
+        )
+    return f"the same {experiment.demos} demonstrations"
+
+
 def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dict) -> list[Path]:
     """table.md, table.csv, table.png and results.json in ``out``."""
     title = f"{experiment.name}: {experiment.runs} runs x {experiment.tests} tests"
@@ -272,8 +304,9 @@ def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dic
     bar_chart(out / "table.png", summary, title)
     text = f"""# {experiment.name}{" (quick)" if experiment.quick else ""}: {experiment.description}
 
-{experiment.runs} runs per method, each trained with its own seed on the same {experiment.demos}
-demonstrations ({experiment.expert} expert) and tested on {experiment.tests} held-out arenas of
+{experiment.runs} runs per method, each trained with its own seed on {demos_text(experiment)}
+({experiment.expert} expert) and tested on {experiment.tests} held-out arenas
+({experiment.test_domain} domain) of
 `{experiment.test_task.name}` ({experiment.test_task.arena.static_obstacles} static and
 {experiment.test_task.arena.moving_obstacles} moving obstacles, {experiment.test_task.control.speed:g} m/s,
 {experiment.test_task.robot.drive} drive); the runs of one seed share their test arenas. Rates in percent;

@@ -26,8 +26,7 @@ import numpy as np
 
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.seeds import domain_seeds
-from nirl_mj.learn.bc import clone_pairs
-from nirl_mj.learn.loop import demonstrated_pairs
+from nirl_mj.learn.bc import CloneSettings, clone_pairs, training_pairs
 from nirl_mj.sim import spec as specs
 
 
@@ -73,17 +72,21 @@ def train_dagger(
     expert: str = "sensor",
     config: DaggerConfig = DaggerConfig(),
     on_round: Callable[[int, int], None] | None = None,
+    settings: CloneSettings | None = None,
 ) -> tuple[Callable[[np.ndarray], int], list[int]]:
-    """The last DAgger policy on phi(s) and the training arenas it drove in.
+    """The last DAgger policy on phi(s) and the training arenas it drove in; each round's fit as
+    behaviour cloning's ``settings`` (default: ``CloneSettings.of("default")``).
 
     ``on_round(round, labelled pairs)`` reports progress after each round."""
     from nirl_mj.experts import make_expert
     from nirl_mj.sim.episode import run_episode
     from nirl_mj.sim.task import make_env
 
-    phi, actions = demonstrated_pairs(list(demos))
+    # as behaviour cloning (learn/bc.py): each fit stopped early on the held-out demonstrations
+    settings = settings or CloneSettings.of("default")
+    (phi, actions), held_pairs = training_pairs(demos, settings)
     data_phi, data_actions = [phi], [np.asarray(actions, dtype=np.int64)]
-    policy = clone_pairs(phi, actions, seed=seed)
+    policy = clone_pairs(phi, actions, seed, settings, held_pairs)
     env = make_env(specs.replace(task, robot={"drive": config.drive}))
     teacher = make_expert(expert)
     arenas = domain_seeds("train", seed, config.rounds * config.episodes)
@@ -94,7 +97,9 @@ def train_dagger(
         if agent.labels:
             data_phi.append(np.stack(agent.phi))
             data_actions.append(np.asarray(agent.labels, dtype=np.int64))
-        policy = clone_pairs(np.concatenate(data_phi), np.concatenate(data_actions), seed=seed)
+        policy = clone_pairs(
+            np.concatenate(data_phi), np.concatenate(data_actions), seed, settings, held_pairs
+        )
         if on_round:
             on_round(round_ + 1, sum(len(a) for a in data_actions))
     return policy, arenas

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from nirl_mj.experiments.rl import ALGOS
+from nirl_mj.experiments.seeds import TEST_DOMAINS
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
 from nirl_mj.sim import spec as specs
@@ -40,12 +41,12 @@ KINDS = ("compare", "sweep")
 METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
-               "method", "demos", "config", "quick")  # fmt: skip
+               "method", "demos", "config", "quick", "test_domain")  # fmt: skip
 KEYS = {
     "compare": (*COMMON_KEYS, "paper", "strip"),
     "sweep": (*COMMON_KEYS, "obstacles", "speeds"),
 }
-DEMO_KEYS = ("expert", "episodes")
+DEMO_KEYS = ("expert", "episodes", "per_run")
 METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps")
 RL_KEYS = ("algo", "steps")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
@@ -60,7 +61,8 @@ class ExperimentError(SpecError):
 
 @dataclass(frozen=True)
 class MethodSpec:
-    """One row of the results. ``variant``/``method``/``config`` matter for ``kind = "irl"`` only:
+    """One row of the results. ``variant`` also chooses behaviour cloning's settings (``kind = "bc"``:
+    ``learn.bc.CloneSettings.of``); ``variant``/``method``/``config`` matter for ``kind = "irl"``:
     ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo`` and
     ``steps`` (decisions of training) for ``kind = "rl"`` only."""
 
@@ -85,6 +87,8 @@ class MethodSpec:
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
     "NIRL-paper": MethodSpec("NIRL-paper", "irl", "paper", "nirl"),
+    # the default's last iterate: the same training (selection does not change it), no selection
+    "NIRL-last": MethodSpec("NIRL-last", "irl", "default", "nirl", {"selection": "last"}),
     # the default's margin until 2026-11-25: every action an alternative, a classifier of the expert's
     # actions that never reads the learner's rollouts (docs/ALGORITHM.md)
     "NIRL-classifier": MethodSpec("NIRL-classifier", "irl", "default", "nirl", {"matching": "occupancy"}),
@@ -94,7 +98,11 @@ BUILTIN_METHODS = {
     "AL-traj": MethodSpec("AL-traj", "irl", "default", "al", {"al_expectations": "trajectory"}),
     "RE-traj": MethodSpec("RE-traj", "irl", "default", "re", {"re_expectations": "trajectory"}),
     "SCIRL": MethodSpec("SCIRL", "irl", "default", "scirl"),
+    # behaviour cloning with the default NIRL's inputs and width, a class-balanced loss and early
+    # stopping on held-out demonstrations (learn/bc.py); BC-paper: the paper's network, unweighted
+    # (the BC row until 2026-11-26)
     "BC": MethodSpec("BC", "bc"),
+    "BC-paper": MethodSpec("BC-paper", "bc", "paper"),
     "DAgger": MethodSpec("DAgger", "dagger"),
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
@@ -157,6 +165,9 @@ class Experiment:
     obstacles: tuple[int, ...]
     speeds: tuple[float, ...]
     quick: bool
+    # demonstrations drawn per run (run r's seeded seed + r) instead of one set for every run
+    demos_per_run: bool = False
+    test_domain: str = "test"  # "test": the development arenas; "final": the reported tables' arenas
 
     def identity(self) -> dict:
         """Everything that changes a cell's result, as JSON: an output directory holds one identity."""
@@ -177,6 +188,11 @@ class Experiment:
             "obstacles": list(self.obstacles),
             "speeds": list(self.speeds),
         }
+        # only when set: the identities of experiments written before these keys stay unchanged
+        if self.demos_per_run:
+            data["demos_per_run"] = True
+        if self.test_domain != "test":
+            data["test_domain"] = self.test_domain
         return json.loads(json.dumps(data))
 
     def cell_task(self, obstacles: int, speed: float) -> specs.TaskSpec:
@@ -266,6 +282,8 @@ def from_dict(
         speeds=tuple(_number(v, f"{where('speeds')}[{i}]")
                      for i, v in enumerate(_list(data.get("speeds", []), where("speeds")))),
         quick=quick,
+        demos_per_run=_bool(demos.get("per_run", False), f"{where('demos')}.per_run"),
+        test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
     )  # fmt: skip
     if kind == "sweep":
         rl = [m.name for m in methods if m.kind == "rl"]
@@ -320,8 +338,10 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         default = base or MethodSpec(name, "irl")
         kind = _choice(table.get("kind", default.kind), METHOD_KINDS, f"{where}.kind")
         changes = _learner_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")
-        if kind != "irl" and (changes or "variant" in table or "method" in table):
-            raise ExperimentError(f'{where}: variant, method and config apply to kind = "irl" only')
+        if kind != "irl" and (changes or "method" in table):
+            raise ExperimentError(f'{where}: method and config apply to kind = "irl" only')
+        if kind not in ("irl", "bc", "dagger") and "variant" in table:
+            raise ExperimentError(f'{where}: variant applies to kind = "irl", "bc" and "dagger" only')
         if kind != "rl" and any(k in table for k in RL_KEYS):
             raise ExperimentError(f'{where}: algo and steps apply to kind = "rl" only')
         method = MethodSpec(
@@ -341,6 +361,12 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     return method
 
 
+CLONE_FIT = "balanced, early-stopped (2026-11-26)"
+"""The fit of behaviour cloning and DAgger in their default variant, in their identity: the fit of
+that name changed on 2026-11-26 (``learn/bc.py``), so a cell computed before is never taken for one
+computed after. The paper variant is the fit of before, and its identity is as it was."""
+
+
 def _method_identity(method: MethodSpec) -> dict:
     """A method as JSON for the experiment's identity; ``algo`` and ``steps`` only for kind "rl", so
     that the identity of an experiment written before they existed is unchanged."""
@@ -348,6 +374,8 @@ def _method_identity(method: MethodSpec) -> dict:
     if method.kind != "rl":
         for key in RL_KEYS:
             del data[key]
+    if method.kind in ("bc", "dagger") and method.variant == "default":
+        data["clone"] = CLONE_FIT
     return data
 
 
@@ -420,6 +448,12 @@ def _list(value: Any, where: str) -> list:
 def _str(value: Any, where: str) -> str:
     if not isinstance(value, str):
         raise ExperimentError(f"{where} = {value!r}: expected a string")
+    return value
+
+
+def _bool(value: Any, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise ExperimentError(f"{where} = {value!r}: expected true or false")
     return value
 
 

@@ -294,8 +294,23 @@ class _Serial:
         pass
 
 
+def exit_with_parent(parent: int, every: float = 0.5) -> None:
+    """In a worker process: end it (at once, as a kill would) when the process ``parent`` that
+    started it has gone. A killed ``nirl-mj compare`` would otherwise leave its workers finishing
+    their cells, writing into run directories that a restarted command writes into too."""
+    import threading
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(every)
+        os._exit(1)  # files are written atomically: at worst a temporary is left, removed on resume
+
+    threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
+
+
 class _Local:
-    """A pool of ``workers`` spawned processes; rebuilt if a process dies."""
+    """A pool of ``workers`` spawned processes (each ends when this process ends); rebuilt if a
+    process dies."""
 
     def __init__(self, workers: int, address: str | None) -> None:
         self.capacity = workers
@@ -309,7 +324,8 @@ class _Local:
                 # where it is current: collected later on the pool's manager thread, it cannot be.
                 gc.collect()
                 spawn = multiprocessing.get_context("spawn")  # no inherited MuJoCo or OpenGL state
-                self.pool = ProcessPoolExecutor(self.capacity, mp_context=spawn)
+                self.pool = ProcessPoolExecutor(self.capacity, mp_context=spawn, initializer=exit_with_parent,
+                                                initargs=(os.getpid(),))  # fmt: skip
             try:
                 future = self.pool.submit(call_cell, cell.fn, cell.args)
             except BrokenProcessPool:  # a worker died since the last wait: start a fresh pool

@@ -34,6 +34,7 @@ from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSp
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import Execution, RunJob, policy_of, prepare
+from nirl_mj.experiments.reads import method_reads
 from nirl_mj.inspect.figures import paths_plot, results_table, training_plots
 from nirl_mj.inspect.recording import record_run
 from nirl_mj.learn.config import MATCHINGS
@@ -137,7 +138,9 @@ def main_job(
     if report.failures:
         failed = "; ".join(f"{f.id}: {f.error}" for f in report.failures.values())
         raise RuntimeError(f"the main job failed ({failed}); rerun with --resume to retry")
-    results = {ROWS[name]: report.results[name] for name in ROWS}
+    methods = {m.name: m for m in experiment.methods}
+    results = {ROWS[name]: {**report.results[name], "reads": method_reads(methods[name], experiment.config)}
+               for name in ROWS}  # fmt: skip
     paths = {ROWS[name]: load_dataset(out / "tests" / f"{name}.npz") for name in ROWS}
     write_text(
         out / "results.json",
@@ -235,9 +238,14 @@ validation.{guide}
 {results_table(results)}
 
 The references: *always forward* is what a collapsed learner becomes; the *rule on phi(s)* shows what the
-16 features can carry; *behaviour cloning* trains the same network on the demonstrations; the controls run
-the same NIRL loop with the learned reward replaced by the known progress reward (the inner loop's ceiling)
-and by a constant (surviving alone is rewarded: this shows what the learned reward itself adds).
+16 features can carry; *behaviour cloning* trains a network of NIRL's inputs and width on the
+demonstrations (class-balanced loss, stopped early on held-out demonstrations); the controls run
+the same NIRL loop with its learned per-step reward replaced by the task's progress reward (a reference:
+it reads the task's reward) and by a constant, both keeping the learned value of an episode's end: the
+constant control shows what the learned per-step reward adds to that end value. The last column says what
+each method reads (`nirl_mj/experiments/reads.py`): NIRL reads the demonstrations, phi(s) and that its
+own episodes ended, behaviour cloning the demonstrations and phi(s); neither reads the task's reward,
+outcome or success.
 
 ![margin](margin.png) ![cost](cost.png)
 

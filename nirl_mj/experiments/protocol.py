@@ -2,13 +2,15 @@
 
 An experiment's output directory OUT holds ``experiment.json`` (the identity of
 what it computes: :meth:`nirl_mj.experiments.definition.Experiment.identity`), ``demos.npz``
-(one set of demonstrations for every run and method), ``runs/METHOD/SEED/``
+(one set of demonstrations for every run and method) or, with ``[demos] per_run``,
+``demos/runNNN.npz`` (run r's, seeded ``seed + r``, shared by every method of run r),
+``runs/METHOD/SEED/``
 (training runs, ``nirl-mj train``'s layout, resumable from their checkpoints)
 and ``cells/`` (finished cells, :class:`nirl_mj.experiments.executors.CellStore`).
 
 Seeds. Run r of every method trains with seed ``experiment.seed + r`` on the same
 demonstrations and is tested on the same arenas: ``held_out_seeds(seed + r,
-tests, seen)``, where ``seen`` holds the demonstrations' arenas and the training
+tests, seen, test_domain)``, where ``seen`` holds the demonstrations' arenas and the training
 and validation arenas every trainable method of run r may use. So the methods of
 a run are compared on identical arenas (paired), the test arenas of a run are
 disjoint from everything its learners saw (checked again against each run's
@@ -45,10 +47,16 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
         except json.JSONDecodeError as exc:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
         differ = sorted(k for k in identity if saved.get(k) != identity.get(k))
+        if differ and set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs):
+            from nirl_mj.data.atomic import write_text
+
+            write_text(marker, json.dumps(identity, indent=1))  # the experiment grew by new methods
+            return out
         if differ:
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
-                "or rerun it with the same spec and flags to resume it"
+                "or rerun it with the same spec and flags to resume it (methods may be added, if the "
+                "runs' test arenas stay the same; none may change or go)"
             )
         return out
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -60,18 +68,65 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
     return out
 
 
-def ensure_demos(out: Path, experiment: Experiment, workers: int, log: Callable[[str], None]) -> Path:
-    """OUT/demos.npz: ``experiment.demos`` episodes by its expert on its training task (once)."""
+def resolved_learners(saved: dict) -> dict[str, dict]:
+    """A saved identity's learners, each resolved as its run records are (a setting added since it
+    was saved takes the value it had then: ``LearnerConfig.from_record``)."""
+    from nirl_mj.learn.config import LearnerConfig
+
+    learners = saved.get("learners", {})
+    return {name: LearnerConfig.from_record(flat).to_dict() for name, flat in learners.items()}
+
+
+def grows(saved: dict, identity: dict, runs: int) -> bool:
+    """Whether ``identity`` is the ``saved`` experiment with methods added and nothing else
+    changed: every saved method (and learner) is still there unchanged, and the new learners visit
+    no arena the saved ones did not (so every run's test arenas, and so every finished cell, stay
+    what they were: :func:`run_test_seeds`)."""
+    from nirl_mj.experiments.training import planned_seeds
+    from nirl_mj.learn.config import LearnerConfig
+
+    new_methods = identity["methods"]
+    if any(m not in new_methods for m in saved.get("methods", [])):
+        return False
+    old, new = resolved_learners(saved), identity["learners"]
+    if any(new.get(name) != flat for name, flat in old.items()):
+        return False
+    added = [LearnerConfig.from_dict(new[n]) for n in new if n not in old]
+    kept = [LearnerConfig.from_dict(flat) for flat in old.values()]
+    for run in range(runs):
+        seed = identity["seed"] + run
+        seen = set().union(*(planned_seeds(c, seed) for c in kept))
+        if any(not planned_seeds(c, seed) <= seen for c in added):
+            return False
+    return True
+
+
+def demos_path(out: Path, experiment: Experiment, run: int) -> Path:
+    """Where run ``run``'s demonstrations are: OUT/demos.npz, or OUT/demos/runNNN.npz per run."""
+    return out / "demos" / f"run{run:03d}.npz" if experiment.demos_per_run else out / "demos.npz"
+
+
+def demos_seed(experiment: Experiment, run: int) -> int:
+    """The seed of run ``run``'s demonstrations (their arenas and the expert's randomness)."""
+    return experiment.seed + run if experiment.demos_per_run else experiment.seed
+
+
+def ensure_demos(
+    out: Path, experiment: Experiment, workers: int, log: Callable[[str], None], run: int = 0
+) -> Path:
+    """Run ``run``'s demonstrations (:func:`demos_path`): ``experiment.demos`` episodes by its
+    expert on its training task, seeded :func:`demos_seed` (made once, then re-used)."""
     from nirl_mj.data.dataset import save_dataset
     from nirl_mj.experiments.demos import ExpertConfig, collect
 
-    path = out / "demos.npz"
+    path, seed = demos_path(out, experiment, run), demos_seed(experiment, run)
     if path.is_file():
-        log(f"demonstrations: re-using {path}")
         return path
-    log(f"demonstrations: {experiment.demos} episodes by the {experiment.expert} expert")
-    trajectories = collect(experiment.task, ExpertConfig(experiment.expert, seed=experiment.seed),
-                           experiment.demos, experiment.seed, workers)  # fmt: skip
+    which = f" for run {run}" if experiment.demos_per_run else ""
+    log(f"demonstrations{which}: {experiment.demos} episodes by the {experiment.expert} expert (seed {seed})")
+    trajectories = collect(experiment.task, ExpertConfig(experiment.expert, seed=seed),
+                           experiment.demos, seed, workers)  # fmt: skip
+    path.parent.mkdir(parents=True, exist_ok=True)
     save_dataset(path, trajectories)
     return path
 
@@ -86,9 +141,17 @@ def prepare(
     execution.check_output(out)
     out = open_output(out, experiment)
     if not execution.report_only:  # a report may run beside the experiment: then nothing is left over
-        for leftover in [*leftover_temporaries(out), *leftover_temporaries(out / "cells")]:
-            leftover.unlink(missing_ok=True)  # written by a process killed while writing
-    demos = ensure_demos(out, experiment, execution.workers or default_workers(), log)
+        for folder in (out, out / "cells", out / "demos"):
+            for leftover in leftover_temporaries(folder):
+                leftover.unlink(missing_ok=True)  # written by a process killed while writing
+    workers = execution.workers or default_workers()
+    demos = {}
+    for run in range(experiment.runs):
+        if execution.report_only:  # reports what is there: a run whose demonstrations are missing has no cell
+            if demos_path(out, experiment, run).is_file():
+                demos[run] = demos_path(out, experiment, run)
+        else:
+            demos[run] = ensure_demos(out, experiment, workers, log, run)
     return out, run_jobs(experiment, out, demos)
 
 
@@ -107,7 +170,7 @@ def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> li
     for method in experiment.methods:
         if method.trains:
             seen |= planned_seeds(method.learner_config(experiment.config), seed)
-    return held_out_seeds(seed, experiment.tests, seen)
+    return held_out_seeds(seed, experiment.tests, seen, experiment.test_domain)
 
 
 @dataclass(frozen=True)
@@ -129,19 +192,24 @@ class RunJob:
     expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
 
 
-def run_jobs(experiment: Experiment, out: Path, demos_path: Path) -> dict[tuple[str, int], RunJob]:
-    """Every (method, run) of the experiment, by (method name, run index)."""
+def run_jobs(
+    experiment: Experiment, out: Path, demos: dict[int, Path] | list[Path]
+) -> dict[tuple[str, int], RunJob]:
+    """Every (method, run) of the runs in ``demos``, by (method name, run index); ``demos[r]`` holds
+    run r's demonstrations (one path for every run unless they are drawn per run)."""
     from nirl_mj.data.dataset import load_dataset
 
-    demo_seeds = {t.arena_seed for t in load_dataset(demos_path)}
-    jobs = {}
-    for run in range(experiment.runs):
-        seeds = tuple(run_test_seeds(experiment, run, demo_seeds))
+    jobs, seeds_of = {}, {}
+    runs = demos.items() if isinstance(demos, dict) else enumerate(demos)
+    for run, path in runs:
+        if path not in seeds_of:
+            seeds_of[path] = {t.arena_seed for t in load_dataset(path)}
+        seeds = tuple(run_test_seeds(experiment, run, seeds_of[path]))
         seed = run_seed(experiment, run)
         for method in experiment.methods:
             config = method.learner_config(experiment.config).to_dict() if method.trains else {}
             run_dir = out / "runs" / method.name / str(seed)
-            jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(demos_path), str(run_dir),
+            jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(path), str(run_dir),
                                             config, seeds, experiment.expert)  # fmt: skip
     return jobs
 
@@ -196,16 +264,20 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
     if kind == "dagger":
         from nirl_mj.data.dataset import load_dataset
         from nirl_mj.experiments.dagger import train_dagger
+        from nirl_mj.learn.bc import CloneSettings
 
-        policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert)
+        settings = CloneSettings.of(job.method.variant)
+        policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert,
+                                      settings=settings)  # fmt: skip
         if set(arenas) & set(job.test_seeds):
             raise RuntimeError(f"{job.method.name} run {job.run}: test arenas seen in training")
         return policy
     if kind == "bc":
         from nirl_mj.data.dataset import load_dataset
-        from nirl_mj.learn.bc import behaviour_cloning
+        from nirl_mj.learn.bc import CloneSettings, behaviour_cloning
 
-        return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed)
+        settings = CloneSettings.of(job.method.variant)
+        return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed, settings=settings)
     from nirl_mj.experts.policies import always_forward, rule_policy
 
     return {"forward": always_forward, "rule": rule_policy}[kind]
@@ -232,6 +304,7 @@ class Execution:
     retries: int = 2
     report_only: bool = False  # run nothing: report the cells already finished (a partial table)
     reuse: str | None = None  # compare: an earlier output directory whose same cells are taken
+    only: tuple[str, ...] = ()  # compare: run these methods' cells only, report the others as stored
 
     def __post_init__(self) -> None:
         if self.retries < 0:
@@ -261,7 +334,7 @@ class Execution:
             raise ExperimentError(
                 f"--report: {out} holds no started experiment; run it first (without --report)"
             )
-        if not (Path(out) / "demos.npz").is_file():
+        if not any((Path(out) / name).exists() for name in ("demos.npz", "demos")):
             raise ExperimentError(
                 f"--report: {out} is still collecting its demonstrations; no cell has finished"
             )
@@ -312,8 +385,9 @@ def failed_section(summary: dict) -> str:
     """The Markdown list of failed cells and the count of unfinished ones (empty if none)."""
     text = ""
     if summary.get("unfinished"):
-        text += (f"\n**Partial report** (`--report`): {summary['unfinished']} cells are not finished yet; "
-                 "each row counts its finished runs only.\n")  # fmt: skip
+        text += (f"\n**Partial report** (`--report`, or rows left to another `--only`): "
+                 f"{summary['unfinished']} cells are not finished yet; each row counts its finished runs "
+                 "only.\n")  # fmt: skip
     if summary["failures"]:
         rows = "".join(f"\n- `{f['id']}` failed after {f['attempts']} attempt(s): {f['error']}"
                        for f in summary["failures"])  # fmt: skip

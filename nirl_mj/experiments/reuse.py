@@ -32,11 +32,13 @@ from pathlib import Path
 import numpy as np
 
 from nirl_mj.experiments.definition import Experiment, ExperimentError
-from nirl_mj.experiments.protocol import EXPERIMENT_FILE, RunJob, run_seed
+from nirl_mj.experiments.protocol import EXPERIMENT_FILE, RunJob, resolved_learners, run_seed
 
-SHARED_KEYS = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "config", "obstacles",
-               "speeds")  # fmt: skip
-"""Identity keys OLD must share with the new experiment for any of its cells to be taken."""
+SHARED_KEYS = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "obstacles", "speeds",
+               "test_domain", "demos_per_run")  # fmt: skip
+"""Identity keys OLD must share with the new experiment for any of its cells to be taken. Not the
+experiment's learner ``config``: each learner's resolved settings are compared instead
+(:func:`method_sources`), so a file that pins an old default in its ``[config]`` still matches."""
 
 
 def same_arrays(a: Path, b: Path) -> bool:
@@ -54,8 +56,8 @@ def old_test_seeds(saved: dict, seed: int, tests: int, demo_seeds: set[int]) -> 
 
     seen = set(demo_seeds)
     for flat in saved.get("learners", {}).values():
-        seen |= planned_seeds(LearnerConfig.from_dict(flat), seed)
-    return held_out_seeds(seed, tests, seen)
+        seen |= planned_seeds(LearnerConfig.from_record(flat), seed)
+    return held_out_seeds(seed, tests, seen, saved.get("test_domain", "test"))
 
 
 def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
@@ -63,6 +65,11 @@ def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
     directory with demonstrations, or differs from ``experiment`` in a shared key. Called before
     the new output directory is made, so a wrong OLD costs nothing."""
     old = Path(old).resolve()
+    if experiment.demos_per_run:
+        raise ExperimentError(
+            f"--reuse {old}: takes cells of experiments with one set of demonstrations; this one draws "
+            "them per run ([demos] per_run = true), so run it without --reuse"
+        )
     marker = old / EXPERIMENT_FILE
     if not marker.is_file() or not (old / "demos.npz").is_file():
         raise ExperimentError(f"--reuse {old}: holds no nirl-mj experiment with demonstrations")
@@ -107,7 +114,7 @@ def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     renamed variant)."""
     identity = saved_form(experiment)
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
-    old_learners = saved.get("learners", {})
+    old_learners = resolved_learners(saved)
     sources = {}
     for method in identity["methods"]:
         name, settings = method["name"], identity["learners"].get(method["name"])
@@ -211,6 +218,9 @@ def restore_published(
     from nirl_mj.experiments.executors import CellStore
 
     source, rename = Path(source).resolve(), rename or {}
+    if experiment.demos_per_run:
+        raise ExperimentError(f"{source}: published cells are restored into experiments with one set "
+                              "of demonstrations; this one draws them per run ([demos] per_run)")  # fmt: skip
     try:
         saved = json.loads((source / EXPERIMENT_FILE).read_text())
         published = json.loads((source / "results.json").read_text())["cells"]

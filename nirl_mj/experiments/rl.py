@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from nirl_mj.data.rundir import MODEL_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.experiments.reads import rl_reads
 from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
@@ -127,7 +128,7 @@ def train_rl(
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}), "validation_seeds": [],
-              "train_seeds": [], "steps_done": 0}  # fmt: skip
+              "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
     if resume:
         saved = run.read_record()
@@ -136,7 +137,8 @@ def train_rl(
                 raise RunError(f"{run} was trained with another {key}; resume with the same options, "
                                "or train in a new --out")  # fmt: skip
         run.remove_leftovers()
-        record = {**saved, "steps": steps}  # a resume may train on to a larger total
+        # a resume may train on to a larger total
+        record = {**saved, "steps": steps, "reads": record["reads"]}
         if record["steps_done"] >= steps:
             return record
     elif not run.is_empty():

@@ -24,6 +24,7 @@ from nirl_mj.data.dataset import dataset_digest, load_dataset
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.reads import learner_reads
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.learn import network
 from nirl_mj.learn.config import LearnerConfig
@@ -124,6 +125,7 @@ def train(
         "demos_sha256": dataset_digest(demos),  # the demonstrations by content: a resume must use the same
         "demo_seeds": [t.arena_seed for t in demos],
         "validation_seeds": validation_seeds(config, seed),
+        "reads": learner_reads(config),  # the information budget (nirl_mj.experiments.reads)
     }
     if resume:
         saved = run.read_record()

@@ -118,14 +118,18 @@ def paths_plot(path: str | Path, runs: dict[str, Sequence[Trajectory]], arenas: 
 
 
 def results_table(results: dict[str, dict]) -> str:
-    """Markdown table of evaluation results by policy name."""
+    """Markdown table of evaluation results by policy name; a ``reads`` list in a result (what the
+    method reads, ``nirl_mj.experiments.reads``) becomes a last column."""
+    reads = any("reads" in r for r in results.values())
     lines = [
-        "| policy | success | collision | timeout | mean path (m) | SPL | tests |",
-        "|---|---|---|---|---|---|---|",
+        "| policy | success | collision | timeout | mean path (m) | SPL | tests |"
+        + (" reads |" if reads else ""),
+        "|---|---|---|---|---|---|---|" + ("---|" if reads else ""),
     ]
     for name, r in results.items():
-        lines.append(
+        line = (
             f"| {name} | {r['success_rate']:.0%} | {r['collision_rate']:.0%} | {r['timeout_rate']:.0%} | "
             f"{r['mean_path_length']:.1f} | {r['spl']:.2f} | {r['tests']} |"
         )
+        lines.append(line + (f" {', '.join(r.get('reads', [])) or 'nothing'} |" if reads else ""))
     return "\n".join(lines)

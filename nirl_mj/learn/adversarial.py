@@ -12,8 +12,12 @@ phi(s) scaled to [0, 1] (16 values, as the RL reference sees them) and the actio
   terminal transition). Its logit is l = f - ln pi(a | s), and the policy's reward is
   ln D - ln(1 - D) = l. The learned reward is g(s, a), one value per action, saved with the run
   like NIRL's r_theta (``AirlDiscriminator.reward``). Fu et al. use a state-only g(s) to
-  disentangle the reward from the dynamics; g(s, a) is used here so that the reward ranks the six
-  actions in a state as r_theta does (their state-action variant).
+  disentangle the reward from the dynamics; g(s, a) is used here to give one value per action,
+  as r_theta does (their state-action variant). With deterministic dynamics g(s, a) may absorb any
+  shaping gamma Phi(s') - Phi(s), so only the policy optimal for g over time is pinned down, not
+  g's ranking of the actions in one state (tests/test_airl_recovery.py: on a 4 x 4 grid the policy
+  optimal for the recovered g(s, a) is the expert's in every cell, while the best action by g alone
+  misses it in one of 15 cells for 4 of 5 seeds).
 
 **Absorbing state** (``absorbing=True``; Kostrikov et al. 2019, "Discriminator-Actor-Critic",
 section 4.2). Without it an episode's end is worth nothing after its last reward, so a reward that is

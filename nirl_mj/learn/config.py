@@ -28,6 +28,8 @@ from typing import Any
 METHODS = ("nirl", "al", "re", "scirl")
 """The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
 REWARD_SOURCES = ("learned", "progress", "constant")
+SELECTIONS = ("demo_balanced", "last", "demo_accuracy", "validation")
+TERMINAL_VALUES = ("learned", "outcome")  # learn/terminal.py
 EXPECTATIONS = ("state", "trajectory", "suffix")
 MATCHINGS = {
     "paper": "eq. 11 expectations of whole trajectories",
@@ -56,11 +58,16 @@ class LoopConfig:
     )
     epsilon: float = float("-inf")  # stop when the reward step's margin t <= epsilon (paper: 0)
     reward_scaling: bool = True  # rewards mapped into [0, reward_ceiling (1 - gamma)]
-    # with scaling: what the best reward earned forever is worth, sum_k gamma^k r_max, against an
-    # arrival's terminal value. At 1 (= terminal_arrival_value) circling on the best reward is worth
-    # as much as arriving; below it, arriving sooner is strictly better (docs/ALGORITHM.md)
+    # with scaling: what the best reward earned forever is worth, sum_k gamma^k r_max, against the
+    # value of an episode's end (at most 1). At 1 circling on the best reward is worth as much as
+    # the best end; below it, ending there sooner is strictly better (docs/ALGORITHM.md)
     reward_ceiling: float = 1.0
-    terminal_arrival_value: float = 1.0  # value of reaching the target (a terminal state)
+    # the value of an episode's end in the targets (learn/terminal.py): "learned" (the absorbing
+    # state's reward from the demonstrations' and the learner's ends) or "outcome" (an arrival
+    # worth terminal_arrival_value, other ends 0: reads the task's outcome unless that value is 0,
+    # the paper's targets, where every end is worth 0)
+    terminal_value: str = "learned"
+    terminal_arrival_value: float = 1.0  # an arrival's value in the "outcome" reading
     net_step: float = 0.4  # sigma_2 of eq. 15
     net_l2: float = 1e-3  # lambda_2 of eq. 15
     replay_episodes: int = 10  # 0: train on this episode's pairs only (paper)
@@ -68,7 +75,10 @@ class LoopConfig:
     batch_size: int = 64
     input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
     input_bearing: bool = True  # network input (cos, sin) of the sector centre in V's place (inputs.py)
-    selection: str = "validation"  # "demo_accuracy" (paper) or "validation"
+    # the reported policy: "demo_balanced" (mean per-action recall on the demonstrations), "last"
+    # (the last iterate), "demo_accuracy" (the paper) or "validation" (success on validation arenas:
+    # reads the task's success, an oracle)
+    selection: str = "demo_balanced"
     validation_arenas: int = 20
     validate_every: int = 5
     # validation selection: the best `final_candidates` policies are re-validated on as many
@@ -87,11 +97,17 @@ class LoopConfig:
     weight_averaging: float = 0.0
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
 
+    @property
+    def reads_outcome(self) -> bool:
+        """Whether the value targets read the task's outcome (an arrival worth a fixed value)."""
+        return self.terminal_value == "outcome" and self.terminal_arrival_value != 0
+
     def __post_init__(self) -> None:
         _choice("method", self.method, METHODS)
         _choice("reward_source", self.reward_source, REWARD_SOURCES)
         _choice("reward_features", self.reward_features, ("paper", "extended", "bearing"))
-        _choice("selection", self.selection, ("validation", "demo_accuracy"))
+        _choice("selection", self.selection, SELECTIONS)
+        _choice("terminal_value", self.terminal_value, TERMINAL_VALUES)
         _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
@@ -110,7 +126,8 @@ class MaxMarginConfig:
     # "paper": eq. 11 expectations; "occupancy": per-pair sums, every action an alternative (a
     # classifier of the expert's actions; the default until 2026-11-25, the NIRL-classifier row);
     # "policy" (the default since 2026-11-25): per-pair sums, the alternatives in each demonstrated
-    # state the learner's policies so far, so mu^(i) enters (learn/mmp.py, docs/ALGORITHM.md)
+    # state the learner's policies so far, by their action probabilities there; their rollouts do not
+    # enter (the expert's continuation follows every alternative: learn/mmp.py, docs/ALGORITHM.md)
     matching: str = "policy"
     # occupancy and policy matchings: what follows a deviation from the expert's pair. 1: the learner's mean
     # discounted sum (its own behaviour); 0: the expert's own continuation,
@@ -207,6 +224,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "margin_loss": 1.0,
         "mmp_step_decay": 0.0,
         "reward_scaling": False,
+        "terminal_value": "outcome",
         "terminal_arrival_value": 0.0,
         "replay_episodes": 0,
         "net_epochs": 20,
@@ -223,6 +241,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "n_step": 1,
     "reward_ceiling": 1.0,
     "input_bearing": False,
+    "terminal_value": "outcome",
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""

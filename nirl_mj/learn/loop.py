@@ -13,9 +13,11 @@ Each iteration ("episode" in the paper):
 
 Every policy is kept; the one reported is chosen by the configured rule
 (paper: highest prediction accuracy on the demonstrations). What the
-``default`` variant changes, and why, is in docs/ALGORITHM.md. The learner
-never reads the task's reward or success signal: only the demonstrations, and
-its own trajectories' collisions and arrivals (terminal states).
+``default`` variant changes, and why, is in docs/ALGORITHM.md. With ``reward_source`` "learned",
+``terminal_value`` "learned" and a selection rule that reads no task signal, the learner reads the
+demonstrations, phi(s) and that its own episodes ended, nothing else: not the task's reward,
+outcome (arrival or collision) or success (``nirl_mj.experiments.reads`` names what each
+setting reads).
 
 ``reward_source`` swaps the learned reward for a known one, which gives the
 controls: ``"progress"`` (the inner learner on the progress towards the
@@ -41,6 +43,7 @@ from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
 from nirl_mj.learn.reward import RewardModel, all_action_features
+from nirl_mj.learn.terminal import absorbing_values
 
 
 class NetworkAgent:
@@ -102,7 +105,9 @@ class Transitions:
     """SARSA transitions of the learner's own trajectories, one row each.
 
     ``next_action`` is -1 where the next action is the greedy one (a timeout's
-    last step); ``terminal`` rows do not bootstrap and take ``terminal_value``;
+    last step); ``terminal`` rows do not bootstrap (their ``next_phi`` is the episode's end
+    s_T); ``terminal_value`` is the outcome reading's value of that end (0 unless built with an
+    arrival value: ``learn/terminal.py``);
     ``progress`` is the travel towards the target in units of one decision's
     travel (only the ``progress`` control reads it); ``remaining`` counts the pairs from this
     row to the end of its trajectory, this one included (n-step targets stop there).
@@ -125,7 +130,12 @@ class Transitions:
         )  # fmt: skip
 
     @classmethod
-    def of(cls, trajectories: list[Trajectory], arrival_value: float) -> Transitions:
+    def of(
+        cls, trajectories: list[Trajectory], arrival_value: float = 0.0, progress: bool = False
+    ) -> Transitions:
+        """The rows of ``trajectories``; an ``arrival_value`` other than 0 reads each episode's
+        outcome (the task's: an arrival ends worth it, any other end 0), and ``progress`` the
+        robot's poses and the task's target (the progress control's reward; else zeros)."""
         parts = []
         for t in trajectories:
             n = len(t)
@@ -136,11 +146,14 @@ class Transitions:
             value = np.zeros(n)
             if t.outcome in TERMINAL_OUTCOMES:
                 terminal[-1] = True
-                value[-1] = arrival_value if t.outcome == "target" else 0.0
-            target = np.asarray(t.task["arena"]["target"], dtype=np.float64)
-            distance = np.hypot(*(t.poses[:, :2] - target).T)
-            per_step = t.task["control"]["speed"] * t.task["control"]["decision_period"]
-            progress = (distance[:-1] - distance[1:]) / per_step
+                if arrival_value:
+                    value[-1] = arrival_value if t.outcome == "target" else 0.0
+            travel = np.zeros(n)
+            if progress:
+                target = np.asarray(t.task["arena"]["target"], dtype=np.float64)
+                distance = np.hypot(*(t.poses[:, :2] - target).T)
+                per_step = t.task["control"]["speed"] * t.task["control"]["decision_period"]
+                travel = (distance[:-1] - distance[1:]) / per_step
             parts.append(
                 cls(
                     t.features[:-1],
@@ -149,7 +162,7 @@ class Transitions:
                     next_action,
                     terminal,
                     value,
-                    progress,
+                    travel,
                     np.arange(n, 0, -1),
                 )
             )
@@ -207,6 +220,8 @@ class IrlLoop:
         self.net = network.QNetwork(self.inputs.size, config.loop.hidden_units, seed=seed)
         self.demo_phi, self.demo_actions = demonstrated_pairs(demos)
         self.demo_inputs = self.inputs(self.demo_phi)
+        # phi(s_T) where the demonstrations ended (not truncated): the learned absorbing value's anchor
+        self.expert_ends = np.array([t.features[-1] for t in demos if t.outcome in TERMINAL_OUTCOMES])
         self.reward_step = reward_step(config, demos) if config.loop.reward_source == "learned" else None
         n_theta = all_action_features(self.demo_phi[:1], config.loop.reward_features).shape[-1]
         self.theta = np.zeros(n_theta)
@@ -248,10 +263,20 @@ class IrlLoop:
         else:  # eq. 14: the next pair the policy took (the greedy one after a timeout's last step)
             q_next = np.where(t.next_action >= 0, q_next_all[rows, np.maximum(t.next_action, 0)], greedy_next)
         rewards, spread = self._rewards(t)
+        ends = self._terminal_values(t)
         targets, clipped = sarsa.sarsa_targets(
-            q_sa, rewards, q_next, t.terminal, c.alpha, c.gamma, t.terminal_value, t.remaining, c.n_step
+            q_sa, rewards, q_next, t.terminal, c.alpha, c.gamma, ends, t.remaining, c.n_step
         )
         return targets, clipped, spread
+
+    def _terminal_values(self, t: Transitions) -> np.ndarray:
+        """The value of each row's episode end, (N,), read where ``t.terminal`` (learn/terminal.py)."""
+        if self.loop.terminal_value == "outcome":
+            return t.terminal_value
+        values = np.zeros(len(t))
+        ends = t.next_phi[t.terminal]
+        values[t.terminal] = absorbing_values(self.expert_ends, ends, self.loop.reward_features)
+        return values
 
     def _fit(self, t: Transitions) -> float:
         c = self.loop
@@ -297,7 +322,8 @@ class IrlLoop:
             if margin <= c.epsilon:  # lines 6-8
                 self.stopped = True
 
-        fresh = Transitions.of(trajectories, c.terminal_arrival_value)  # lines 9-10
+        arrival = c.terminal_arrival_value if c.reads_outcome else 0.0
+        fresh = Transitions.of(trajectories, arrival, progress=c.reward_source == "progress")  # lines 9-10
         self.replay = ([*self.replay, fresh])[-max(c.replay_episodes, 1) :]
         cost = self._fit(Transitions.concat(self.replay))
         after = network.get_weights(self.net)
@@ -305,15 +331,14 @@ class IrlLoop:
 
         greedy = network.greedy_actions(network.q_values(policy_net, self.demo_inputs))
         demo_acc = float(np.mean(greedy == self.demo_actions))
+        balanced = balanced_accuracy(self.demo_actions, greedy)
         preferred = (
             RewardModel(self.theta, c.reward_features).rewards_all_actions(self.demo_phi).argmax(axis=1)
         )
         validation = validate(policy_net) if validate is not None else None
         self.kept.append(kept)
         self.thetas.append(self.theta.copy())
-        self.scores.append(
-            demo_acc if c.selection == "demo_accuracy" else (validation if validation is not None else -1.0)
-        )
+        self.scores.append(self._score(demo_acc, balanced, validation))
         rates = outcome_rates(t.outcome for t in trajectories)
         metrics = Metrics(
             episode=self.iteration,
@@ -322,7 +347,7 @@ class IrlLoop:
             dw1=float(np.abs(after["W1"] - before["W1"]).sum()),
             dw2=float(np.abs(after["W2"] - before["W2"]).sum()),
             demo_accuracy=demo_acc,
-            demo_balanced_accuracy=balanced_accuracy(self.demo_actions, greedy),
+            demo_balanced_accuracy=balanced,
             success_rate=rates["success_rate"],
             collision_rate=rates["collision_rate"],
             timeout_rate=rates["timeout_rate"],
@@ -336,6 +361,18 @@ class IrlLoop:
         )
         self.iteration += 1
         return metrics
+
+    def _score(self, accuracy: float, balanced: float, validation: float | None) -> float:
+        """The selection score of this iteration's policy (``LoopConfig.selection``): the higher, the
+        better; the first best is chosen (:attr:`selected`)."""
+        rule = self.loop.selection
+        if rule == "demo_accuracy":
+            return accuracy
+        if rule == "demo_balanced":
+            return balanced
+        if rule == "last":
+            return float(self.iteration)
+        return validation if validation is not None else -1.0
 
     def _kept_policy(self, after: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], network.QNetwork]:
         """The policy this iteration keeps, and a network holding it: the trained network itself, or

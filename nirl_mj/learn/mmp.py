@@ -151,9 +151,10 @@ def mmp_objective_policies(
     demonstrated states. In each state s_n the alternative to the expert's pair is the policy j
     whose expected loss-augmented value sum_a pi_j(a | s_n) (theta^T f(s_n, a) + l(s_n, a)) is
     highest (lowest j on ties). With one-hot rows for every action this is
-    :func:`mmp_objective_blocks` (a test checks it); with the learner's Boltzmann policies,
-    mu^(j) of eq. 12-13 enters, and a state where every policy so far takes the expert's action
-    costs nothing.
+    :func:`mmp_objective_blocks` (a test checks it); with the learner's Boltzmann policies, a
+    state where every policy so far takes the expert's action costs nothing. The policies enter by
+    their action probabilities in the expert's states, not by their rollouts: what follows each
+    alternative is in ``offset`` (the expert's continuation by default, which cancels).
     """
     return _per_state_policies_objective(theta, blocks, offset, loss, _per_state(policies), lam)
 

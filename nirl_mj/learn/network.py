@@ -176,7 +176,9 @@ def _as_batch(
     return x, a, y
 
 
-def _cost(net: QNetwork, x: torch.Tensor, a: torch.Tensor, y: torch.Tensor, l2: float) -> torch.Tensor:
+def _cost(
+    net: QNetwork, x: torch.Tensor, a: torch.Tensor, y: torch.Tensor, l2: float, w: torch.Tensor | None = None
+) -> torch.Tensor:
     n = x.shape[0]
     # Output of the TAKEN action only: Q_t = G_Omega(s_t, a_t), as a logit y_t (Q_t = sig(y_t)).
     logit = net.logits(x).gather(1, a.unsqueeze(1)).squeeze(1)
@@ -184,34 +186,49 @@ def _cost(net: QNetwork, x: torch.Tensor, a: torch.Tensor, y: torch.Tensor, l2: 
     log_q = -torch.nn.functional.softplus(-logit)
     log_1mq = -torch.nn.functional.softplus(logit)
     # eq. 15, first term: -(1/N) sum_t [Qhat_t log Q_t + (1 - Qhat_t) log(1 - Q_t)]
-    data = -(y * log_q + (1.0 - y) * log_1mq).sum() / n
+    per_row = -(y * log_q + (1.0 - y) * log_1mq)
+    data = (per_row if w is None else w * per_row).sum() / n
     # eq. 15, second term: lambda_2 / (2N) sum_l sum_{i >= 1} sum_j (w_ji^(l))^2  (bias column 0 excluded)
     reg = (float(l2) / (2.0 * n)) * ((net.W1[:, 1:] ** 2).sum() + (net.W2[:, 1:] ** 2).sum())
     return data + reg
 
 
 def cross_entropy_cost(
-    net: QNetwork, phi: np.ndarray, actions: np.ndarray, targets: np.ndarray, l2: float
+    net: QNetwork,
+    phi: np.ndarray,
+    actions: np.ndarray,
+    targets: np.ndarray,
+    l2: float,
+    weights: np.ndarray | None = None,
 ) -> torch.Tensor:
     """Cross-entropy cost J(Omega) with L2 regularisation (eq. 15), differentiable (0-d tensor).
 
     phi: (N, n_in) state features; actions: (N,) ints, the taken actions a_t (only
     their outputs Q_t = G(s_t, a_t) enter the cost); targets: (N,) SARSA targets
     Qhat_t in [0, 1] (eq. 14); l2: lambda_2 >= 0. The regulariser covers the
-    non-bias weights of W1 and W2 (columns 1: of each).
+    non-bias weights of W1 and W2 (columns 1: of each). ``weights`` (N,) multiply each pair's
+    cross-entropy term (behaviour cloning's class balance, ``learn/bc.py``); none: 1 each.
     """
     x, a, y = _as_batch(phi, actions, targets)
-    return _cost(net, x, a, y, l2)
+    w = None if weights is None else torch.as_tensor(np.asarray(weights, dtype=np.float64), dtype=_DTYPE)
+    return _cost(net, x, a, y, l2, w)
 
 
 def _gradients(
-    w1: np.ndarray, w2: np.ndarray, x: np.ndarray, a: np.ndarray, y: np.ndarray, l2: float
+    w1: np.ndarray,
+    w2: np.ndarray,
+    x: np.ndarray,
+    a: np.ndarray,
+    y: np.ndarray,
+    l2: float,
+    weights: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """eq. 15's cost J and its gradients dJ/dW1, dJ/dW2 by explicit backpropagation.
 
     The same numbers as torch's autograd on :func:`cross_entropy_cost` (a test
     checks it) at a tenth of the cost: on a 16-10-6 network the per-operation
-    bookkeeping of autograd, and of torch itself, dominates the arithmetic.
+    bookkeeping of autograd, and of torch itself, dominates the arithmetic. ``weights`` (N,)
+    multiply each row's cross-entropy (none: 1 each), as in :func:`cross_entropy_cost`.
     """
     n = x.shape[0]
     h = expit(w1[:, 0] + x @ w1[:, 1:].T)  # eq. 7, hidden layer (N, n_hidden)
@@ -219,9 +236,11 @@ def _gradients(
     logit = w2a[:, 0] + np.einsum("nh,nh->n", h, w2a[:, 1:])
     reg = (float(l2) / (2.0 * n)) * (np.sum(w1[:, 1:] ** 2) + np.sum(w2[:, 1:] ** 2))
     # -log Q = softplus(-y), -log(1 - Q) = softplus(y), written with logaddexp to stay finite
-    cost = float(np.sum(y * np.logaddexp(0.0, -logit) + (1.0 - y) * np.logaddexp(0.0, logit)) / n + reg)
-    # dJ/dlogit_t = (Q_t - Qhat_t) / N for the cross-entropy of a sigmoid output
-    d = (expit(logit) - y) / n
+    w = np.ones(n) if weights is None else weights
+    per_row = y * np.logaddexp(0.0, -logit) + (1.0 - y) * np.logaddexp(0.0, logit)
+    cost = float(np.sum(w * per_row) / n + reg)
+    # dJ/dlogit_t = w_t (Q_t - Qhat_t) / N for the (weighted) cross-entropy of a sigmoid output
+    d = w * (expit(logit) - y) / n
     g2 = np.zeros_like(w2)
     np.add.at(g2, a, np.column_stack([d, d[:, None] * h]))
     dz = d[:, None] * w2a[:, 1:] * h * (1.0 - h)  # back through the hidden sigmoid
@@ -231,10 +250,18 @@ def _gradients(
     return cost, g1, g2
 
 
-def _step(net: QNetwork, x: np.ndarray, a: np.ndarray, y: np.ndarray, l2: float, step: float) -> float:
+def _step(
+    net: QNetwork,
+    x: np.ndarray,
+    a: np.ndarray,
+    y: np.ndarray,
+    l2: float,
+    step: float,
+    weights: np.ndarray | None = None,
+) -> float:
     # numpy views of the parameters' storage: the update below is the network's own
     w1, w2 = net.W1.detach().numpy(), net.W2.detach().numpy()
-    cost, g1, g2 = _gradients(w1, w2, x, a, y, l2)
+    cost, g1, g2 = _gradients(w1, w2, x, a, y, l2, weights)
     # W^(l) <- W^(l) - sigma_2 dJ/dW^(l)   (gradient descent on eq. 15)
     w1 -= float(step) * g1
     w2 -= float(step) * g2
@@ -269,8 +296,10 @@ def minibatch_epochs(
     epochs: int,
     batch_size: int,
     rng: np.random.Generator,
+    weights: np.ndarray | None = None,
 ) -> float:
-    """Plain minibatch SGD on eq. 15 (the experience-replay variant).
+    """Plain minibatch SGD on eq. 15 (the experience-replay variant); ``weights`` (N,) as in
+    :func:`cross_entropy_cost`.
 
     Each epoch shuffles the N pairs with ``rng.permutation(N)`` and takes one
     gradient step per consecutive slice of ``batch_size`` pairs (the last one may
@@ -288,7 +317,7 @@ def minibatch_epochs(
         perm = rng.permutation(n)
         for start in range(0, n, int(batch_size)):
             idx = perm[start : start + int(batch_size)]
-            cost = _step(net, x[idx], a[idx], y[idx], l2, step)
+            cost = _step(net, x[idx], a[idx], y[idx], l2, step, None if weights is None else weights[idx])
             total += cost * idx.shape[0]
             count += idx.shape[0]
     return total / count if count else 0.0

@@ -1,0 +1,241 @@
+"""One information budget: what each method reads, recorded, and checked against what its code touches.
+
+A learner from demonstrations reads the demonstrations, phi(s) and that its own episodes ended
+(``nirl_mj/experiments/reads.py``). The learned value of an episode's end (``learn/terminal.py``)
+replaces the arrival value that read the task's outcome; the selection rules that read no task
+signal replace success on validation arenas.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.experiments import compare
+from nirl_mj.experiments.definition import BUILTIN_METHODS, from_dict
+from nirl_mj.experiments.reads import (
+    LEARNER_BUDGET,
+    TASK_SIGNALS,
+    VOCABULARY,
+    check_words,
+    is_reference,
+    learner_reads,
+    method_reads,
+)
+from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.loop import IrlLoop
+from nirl_mj.learn.reward import state_reward_features
+from nirl_mj.learn.terminal import absorbing_values
+
+LEARNERS_FROM_DEMONSTRATIONS = ("NIRL", "NIRL-classifier", "NIRL-paper", "AL", "RE", "SCIRL", "AL-traj",
+                                "RE-traj", "BC", "BC-paper", "GAIL", "AIRL", "AIRL-state",
+                                "GAIL-absorbing")  # fmt: skip
+
+
+# -- the vocabulary and every built-in method's entry --------------------------------------------
+
+
+def test_every_builtin_method_reads_words_of_the_vocabulary():
+    for name, method in BUILTIN_METHODS.items():
+        reads = method_reads(method)
+        check_words(reads, name)
+        assert reads == [w for w in VOCABULARY if w in reads], f"{name}: not in the vocabulary's order"
+
+
+@pytest.mark.parametrize("name", LEARNERS_FROM_DEMONSTRATIONS)
+def test_learners_from_demonstrations_read_no_task_signal(name):
+    reads = method_reads(BUILTIN_METHODS[name])
+    assert set(reads) <= set(LEARNER_BUDGET) and "demonstrations" in reads
+    assert not is_reference(reads)
+
+
+def test_references_say_what_more_they_read():
+    assert method_reads(BUILTIN_METHODS["DAgger"]) == ["demonstrations", "features", "interactive_expert"]
+    assert {"task_reward", "task_outcome"} <= set(method_reads(BUILTIN_METHODS["PPO-reward"]))
+    assert method_reads(BUILTIN_METHODS["rule"]) == ["features", "hand_written"]
+    assert method_reads(BUILTIN_METHODS["forward"]) == ["hand_written"]
+    assert all(is_reference(method_reads(BUILTIN_METHODS[n])) for n in ("DAgger", "PPO-reward", "rule"))
+
+
+def test_an_oracle_setting_is_named_in_reads():
+    oracle = LearnerConfig.preset("default", selection="validation", terminal_value="outcome")
+    assert learner_reads(oracle) == ["demonstrations", "features", "episode_end", "task_outcome",
+                                     "task_success_selection"]  # fmt: skip
+    assert "task_reward" in learner_reads(LearnerConfig.preset("default", reward_source="progress"))
+    # the paper's targets: "outcome" with an arrival worth 0 reads nothing of the outcome
+    assert learner_reads(LearnerConfig.preset("paper")) == list(LEARNER_BUDGET)
+
+
+def test_unknown_words_are_refused():
+    with pytest.raises(ValueError, match="unknown reads word"):
+        check_words(["features", "success"], "x")
+    assert set(TASK_SIGNALS) <= set(VOCABULARY)
+
+
+def test_the_compare_summary_and_table_carry_reads():
+    e = from_dict({"kind": "compare", "methods": ["NIRL", "BC", "DAgger", "forward"], "runs": 1})
+    summary = compare.summarise(e, {})
+    assert summary["methods"]["NIRL"]["reads"] == ["demonstrations", "features", "episode_end"]
+    table = compare.markdown_table(summary)
+    assert "| demonstrations, features, episode_end |" in table
+    assert "**reference:** demonstrations, features, interactive_expert" in table
+
+
+# -- the learner touches what its reads say --------------------------------------------------------
+
+
+def _trajectory(rng: np.random.Generator, n: int, outcome: str) -> Trajectory:
+    phi = np.zeros((n + 1, 16), dtype=np.float32)
+    phi[:, :7] = rng.integers(0, 8, size=(n + 1, 7))
+    phi[:, 7] = rng.integers(1, 10, size=n + 1)
+    phi[:, 8] = rng.integers(0, 2, size=n + 1)
+    phi[:, 9:] = rng.integers(0, 2, size=(n + 1, 7))
+    task = {"arena": {"target": [90.0, 90.0]}, "control": {"speed": 2.0, "decision_period": 0.5}}
+    return Trajectory(features=phi, actions=rng.integers(0, 6, size=n), ranges=np.zeros((n + 1, 9)),
+                      poses=np.zeros((n + 1, 3)), times=0.5 * np.arange(n + 1),
+                      arena_seed=int(rng.integers(1e9)), task=task, speed=2.0, outcome=outcome,
+                      demonstrator="test")  # fmt: skip
+
+
+SWAP = {"target": "collision", "collision": "target", "physics_error": "target", "timeout": "timeout"}
+
+
+def _scramble(t: Trajectory, rng: np.random.Generator) -> Trajectory:
+    """The same phi(s), actions and episode end, but the outcome swapped (an arrival reads as a
+    collision and the other way round), and the poses and the target redrawn: all that the task's
+    reward (progress towards the target, +-1 at the end) is computed from."""
+    task = {**t.task, "arena": {"target": list(rng.uniform(0, 100, 2))}}
+    poses = rng.uniform(0, 100, t.poses.shape)
+    return dataclasses.replace(t, outcome=SWAP[t.outcome], poses=poses, task=task)
+
+
+def _run_loop(config: LearnerConfig, scrambled: bool) -> dict:
+    """Two iterations of the loop on fixed fake rollouts; ``scrambled`` scrambles the task's
+    outcome and reward of every rollout (:func:`_scramble`)."""
+    rng = np.random.default_rng(0)
+    demos = [_trajectory(rng, 12, "target") for _ in range(3)]
+    outcomes = ["target", "collision", "timeout", "collision"]
+
+    def rollouts(agent, seeds):
+        batch = np.random.default_rng(seeds[0])
+        trajectories = [_trajectory(batch, 8, outcomes[i % 4]) for i in range(len(seeds))]
+        if scrambled:
+            trajectories = [_scramble(t, batch) for t in trajectories]
+        return trajectories
+
+    loop = IrlLoop(config, demos, seed=3)
+    for i in range(2):
+        loop.step(rollouts, [100 * i + k for k in range(4)])
+    return loop.state()
+
+
+@pytest.mark.parametrize("method", ["nirl", "al", "re", "scirl"])
+def test_a_learner_from_demonstrations_is_blind_to_the_task_outcome(method):
+    """The default learner (any reward step) ends in the same state, bit for bit, when every
+    rollout's outcome and reward are scrambled; the outcome reading and the progress control (which
+    read them) do not: the test can fail."""
+    config = LearnerConfig.preset("default", method=method, trajectories_per_episode=4, replay_episodes=2)
+    assert "task_outcome" not in learner_reads(config)
+    same, scrambled = _run_loop(config, False), _run_loop(config, True)
+    for key in same:
+        np.testing.assert_array_equal(same[key], scrambled[key], err_msg=key)
+    oracle = config.replace(terminal_value="outcome")
+    assert "task_outcome" in learner_reads(oracle)
+    a, b = _run_loop(oracle, False), _run_loop(oracle, True)
+    assert not np.array_equal(a["net_W2"], b["net_W2"])
+    progress = config.replace(reward_source="progress")
+    assert "task_reward" in learner_reads(progress)
+    a, b = _run_loop(progress, False), _run_loop(progress, True)
+    assert not np.array_equal(a["net_W2"], b["net_W2"])
+
+
+# -- the learned value of an episode's end (learn/terminal.py) --------------------------------------
+
+
+def _phi(danger: float = 0, sector: int = 1, detected: int = 0) -> np.ndarray:
+    phi = np.zeros(16)
+    phi[:7], phi[7], phi[8] = danger, sector, detected
+    return phi
+
+
+def test_absorbing_values_by_hand():
+    """Expert ends: target detected, no danger. Learner ends: one like the expert's, two collisions
+    (danger 7 on every sensor). With the "extended" block b = [D/7 (7), V one-hot (9), I, U (7), 1]:
+    mu_E = [0]*7 + e_V1 + I=1 + 0 + 1; mu_pi = (1 x expert end + 2 x collision) / 3, so
+    w = mu_E - mu_pi has D components -2/3, I component 2/3, the rest 0. Scores w . b: the
+    learner's expert-like end 2/3, each collision 7 x (-2/3) = -14/3; the expert's mean 2/3.
+    Values (s - min) / (top - min): 1, 0, 0."""
+    expert = np.array([_phi(detected=1), _phi(detected=1)])
+    learner = np.array([_phi(detected=1), _phi(danger=7), _phi(danger=7)])
+    w = state_reward_features(expert, "extended").mean(0) - state_reward_features(learner, "extended").mean(0)
+    np.testing.assert_allclose(w[:7], -2 / 3)
+    assert w[16] == pytest.approx(2 / 3)
+    np.testing.assert_allclose(absorbing_values(expert, learner, "extended"), [1.0, 0.0, 0.0])
+    # a collision that also sees the target lies between: (-14/3 + 2/3 - (-14/3)) / (2/3 + 14/3) = 1/8
+    learner = np.array([_phi(detected=1), _phi(danger=7), _phi(danger=7, detected=1)])
+    values = absorbing_values(expert, learner, "extended")
+    w = state_reward_features(expert, "extended").mean(0) - state_reward_features(learner, "extended").mean(0)
+    scores = state_reward_features(learner, "extended") @ w
+    top = state_reward_features(expert, "extended").mean(0) @ w
+    np.testing.assert_allclose(values, np.clip((scores - scores.min()) / (top - scores.min()), 0, 1))
+    assert 0.0 < values[2] < values[0] == 1.0 and values[1] == 0.0
+
+
+def test_absorbing_values_edge_cases():
+    """The scale is relative to the batch of the learner's ends (learn/terminal.py says so): its
+    worst end is worth 0 whatever it is, so a lone end is worth 0 and, among arrivals only, the
+    least expert-like arrival is worth 0 too."""
+    expert = np.array([_phi(detected=1)])
+    assert absorbing_values(expert, np.zeros((0, 16)), "bearing").shape == (0,)
+    np.testing.assert_array_equal(absorbing_values(np.zeros((0, 16)), expert, "bearing"), [0.0])
+    lone = np.array([_phi(danger=1, detected=1)])
+    np.testing.assert_array_equal(absorbing_values(expert, lone, "bearing"), [0.0])
+    # w's danger components: 0 - (1 + 2) / 2 / 7 = -1.5/7 each; scores 7 (d/7)(-1.5/7) = -1.5/7 and
+    # -3/7, the expert's 0: values (s + 3/7) / (3/7) = 0.5 and 0
+    arrivals = np.array([_phi(danger=1, detected=1), _phi(danger=2, detected=1)])
+    np.testing.assert_allclose(absorbing_values(expert, arrivals, "bearing"), [0.5, 0.0])
+    collisions = np.array([_phi(danger=7), _phi(danger=6)])
+    assert absorbing_values(expert, collisions, "bearing")[0] == 0.0
+    # every learner end where the expert's ends: nothing to tell apart, each worth an expert's end
+    np.testing.assert_array_equal(
+        absorbing_values(expert, np.array([_phi(detected=1)] * 2), "bearing"), [1, 1]
+    )
+
+
+# -- selection without a task signal ---------------------------------------------------------------
+
+
+def test_selection_rules_read_no_validation():
+    rng = np.random.default_rng(1)
+    demos = [_trajectory(rng, 10, "target") for _ in range(2)]
+    for rule in ("demo_balanced", "last", "demo_accuracy"):
+        config = LearnerConfig.preset("default", selection=rule, trajectories_per_episode=2)
+        loop = IrlLoop(config, demos, seed=0)
+        assert loop._score(0.9, 0.3, None) == {"demo_balanced": 0.3, "last": 0.0, "demo_accuracy": 0.9}[rule]
+        loop.iteration = 4
+        assert loop._score(0.9, 0.3, 0.7) == {"demo_balanced": 0.3, "last": 4.0, "demo_accuracy": 0.9}[rule]
+    oracle = IrlLoop(LearnerConfig.preset("default", selection="validation"), demos, seed=0)
+    assert oracle._score(0.9, 0.3, 0.7) == 0.7 and oracle._score(0.9, 0.3, None) == -1.0
+
+
+def test_the_readme_table_of_what_each_method_reads_is_the_code_s():
+    import re
+    from pathlib import Path
+
+    from nirl_mj.experiments.definition import load_experiment
+
+    lines = (Path(__file__).resolve().parents[1] / "README.md").read_text().splitlines()
+    start = lines.index("| method | reads | |")
+    table = []
+    for line in lines[start + 2 :]:
+        if not line.startswith("|"):
+            break
+        table.append(line)
+    listed = set()
+    for line in table:
+        names, words = line.split(" | ")[:2]
+        for name in re.findall(r"`([^`]+)`", names):
+            assert method_reads(BUILTIN_METHODS[name]) == words.split(", "), name
+            listed.add(name)
+    assert {m.name for m in load_experiment("table1").methods} <= listed
