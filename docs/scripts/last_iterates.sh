@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # The last iterate of every run of a compare experiment, on the same 100 test arenas as the
 # experiment's table (run R is tested with seed R): is selection a safeguard or the result?
+# For experiments on the development domain (test_domain = "test") with one set of demonstrations,
+# as before 2026-11-26 (`nirl-mj eval` draws from that domain); tasks/table1.toml has a NIRL-last
+# row instead.
 # Usage: [JOBS=2] bash docs/scripts/last_iterates.sh OUT METHOD [METHOD ...]   (OUT: the experiment's
 # --out; from any directory, nirl-mj on PATH or in the checkout's .venv; JOBS: evaluations at once)
 # Prints one line per method: the last iterates' success per run (in run order) and their average (percent).
