@@ -24,6 +24,12 @@ code gives the previous digest (9725b24...) bit for bit.
 Re-pinned the same day when NIRL's default margin took the learner's policies as its alternatives
 (``matching = "policy"``, issue 14): meant to change results; with ``matching = "occupancy"`` as the
 default the new code gives the previous digest (88f9b24...) bit for bit.
+Re-pinned on 2026-11-26 for the information budget (issue 31): the learned value of an episode's
+end and selection by balanced accuracy on the demonstrations, behaviour cloning at its strongest,
+the progress kept only for its control, and a ``reads`` list in the main job's results: meant to
+change results; with ``terminal_value = "outcome"`` and ``selection = "validation"`` as the
+defaults, the paper settings for behaviour cloning, the progress always kept and no ``reads`` in
+the results, the new code gives the previous digest (c7a37a4...) bit for bit.
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ TINY_LEARNER = ["episodes=3", "trajectories_per_episode=2", "validation_arenas=2
                 "replay_episodes=2"]  # fmt: skip
 METHODS = {"default": [], "paper": ["--variant", "paper"], "al": ["--config", "method=\"al\""],
            "re": ["--config", "method=\"re\""], "scirl": ["--config", "method=\"scirl\""]}  # fmt: skip
-PINNED = "c7a37a4dd0eda62949466ca0199e8dbed3f3108c829ef8d9db71dd3cd746037d"
+PINNED = "d579c0de3f761f35f072a6316fca503667e75cc932811767a50a79ebe3b7d399"
 
 
 def _arrays_digest(h, path: Path) -> None:
