@@ -337,7 +337,7 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     e = dataclasses.replace(e, config={**e.config, "episodes": 2})
     out = protocol.open_output(tmp_path / "out", e)
     demos = protocol.ensure_demos(out, e, 1, lambda _: None)
-    job = protocol.run_jobs(e, out, [demos])["NIRL", 0]
+    job = protocol.run_jobs(e, out, {0: demos})["NIRL", 0]
     reference = dataclasses.replace(job, run_dir=str(tmp_path / "reference"))
     protocol.ensure_trained(reference)
 

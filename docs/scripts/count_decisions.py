@@ -25,7 +25,7 @@ from pathlib import Path
 import nirl_mj.experiments.evaluation as evaluation
 import nirl_mj.experiments.training as training
 from nirl_mj.experiments.definition import load_experiment
-from nirl_mj.experiments.protocol import run_jobs
+from nirl_mj.experiments.protocol import demos_path, run_jobs
 from nirl_mj.learn.config import LearnerConfig
 
 
@@ -44,13 +44,13 @@ def counting(module, counts: dict[str, int], key: str) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("out", type=Path, help="the compare experiment's --out (its demos.npz)")
+    parser.add_argument("out", type=Path, help="the compare experiment's --out (its demonstrations)")
     parser.add_argument("runs", type=int, nargs="*", default=[0])
     parser.add_argument("--method", default="NIRL")
     parser.add_argument("--task", default="tasks/table1.toml")
     args = parser.parse_args()
     experiment = load_experiment(args.task)
-    jobs = run_jobs(experiment, args.out, args.out / "demos.npz")
+    jobs = run_jobs(experiment, args.out, {r: demos_path(args.out, experiment, r) for r in args.runs})
     counts: dict[str, int] = {}
     counting(training, counts, "training")
     counting(evaluation, counts, "validation")

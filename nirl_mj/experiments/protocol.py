@@ -192,16 +192,13 @@ class RunJob:
     expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
 
 
-def run_jobs(
-    experiment: Experiment, out: Path, demos: dict[int, Path] | list[Path]
-) -> dict[tuple[str, int], RunJob]:
+def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[tuple[str, int], RunJob]:
     """Every (method, run) of the runs in ``demos``, by (method name, run index); ``demos[r]`` holds
     run r's demonstrations (one path for every run unless they are drawn per run)."""
     from nirl_mj.data.dataset import load_dataset
 
     jobs, seeds_of = {}, {}
-    runs = demos.items() if isinstance(demos, dict) else enumerate(demos)
-    for run, path in runs:
+    for run, path in demos.items():
         if path not in seeds_of:
             seeds_of[path] = {t.arena_seed for t in load_dataset(path)}
         seeds = tuple(run_test_seeds(experiment, run, seeds_of[path]))

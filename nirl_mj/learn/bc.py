@@ -70,21 +70,27 @@ def class_weights(actions: np.ndarray) -> np.ndarray:
     return len(actions) / (present * counts[actions])
 
 
-def _fit(net: network.QNetwork, phi: np.ndarray, actions: np.ndarray, settings: CloneSettings,
-         epochs: int, rng: np.random.Generator) -> None:  # fmt: skip
-    """``epochs`` epochs of minibatch SGD on eq. 15 with every output's target (1: the label)."""
+def _problem(phi: np.ndarray, actions: np.ndarray, settings: CloneSettings) -> tuple:
+    """The fit's arrays, made once: every output of every pair (inputs, output index, target 1 for
+    the label and 0 for the others) and each row's weight (None: unweighted)."""
     x = np.repeat(settings.inputs(np.asarray(phi)), N_ACTIONS, axis=0)
     outputs = np.tile(np.arange(N_ACTIONS), len(actions))
     targets = (outputs == np.repeat(np.asarray(actions), N_ACTIONS)).astype(np.float64)
     weights = np.repeat(class_weights(actions), N_ACTIONS) if settings.balanced else None
+    return x, outputs, targets, weights
+
+
+def _epochs(net: network.QNetwork, problem: tuple, settings: CloneSettings, epochs: int,
+            rng: np.random.Generator) -> None:  # fmt: skip
+    """``epochs`` epochs of minibatch SGD on eq. 15 over a :func:`_problem`."""
+    x, outputs, targets, weights = problem
     network.minibatch_epochs(net, x, outputs, targets, settings.l2, settings.step, epochs,
                              settings.batch_size, rng, weights)  # fmt: skip
 
 
 def _fresh(settings: CloneSettings, seed: int) -> tuple[network.QNetwork, np.random.Generator]:
-    return network.QNetwork(settings.inputs.size, settings.hidden_units, seed=seed), np.random.default_rng(
-        seed
-    )
+    net = network.QNetwork(settings.inputs.size, settings.hidden_units, seed=seed)
+    return net, np.random.default_rng(seed)
 
 
 def early_stopped(
@@ -94,10 +100,11 @@ def early_stopped(
     the ``held_out`` actions best (balanced accuracy; the first best), that count, and every
     epoch's score: early stopping, the network kept as it was validated."""
     net, rng = _fresh(settings, seed)
+    problem, held_inputs = _problem(*train, settings), settings.inputs(held_out[0])
     scores, best, best_weights = [], -1.0, network.get_weights(net)
     for _ in range(settings.epochs):
-        _fit(net, *train, settings, 1, rng)
-        predicted = network.greedy_actions(network.q_values(net, settings.inputs(held_out[0])))
+        _epochs(net, problem, settings, 1, rng)
+        predicted = network.greedy_actions(network.q_values(net, held_inputs))
         scores.append(balanced_accuracy(held_out[1], predicted))
         if scores[-1] > best:
             best, best_weights = scores[-1], network.get_weights(net)
@@ -121,7 +128,7 @@ def clone_pairs(
         net, _, _ = early_stopped((phi, actions), held_out, settings, seed)
     else:
         net, rng = _fresh(settings, seed)
-        _fit(net, phi, actions, settings, settings.epochs, rng)
+        _epochs(net, _problem(phi, actions, settings), settings, settings.epochs, rng)
     return greedy_policy(net, settings.inputs)
 
 
