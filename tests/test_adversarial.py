@@ -104,7 +104,7 @@ def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_pat
         save_discriminator,
     )
 
-    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward(algo, 0.99, demos, seed=3)
     save_discriminator(RunDir(tmp_path), reward)
     loaded = load_discriminator(tmp_path, algo.split("-")[0], 0.99)
@@ -149,14 +149,14 @@ def test_the_discriminator_takes_minibatch_epochs_or_two_full_batch_steps(algo, 
     rng = np.random.default_rng(0)
 
     def pairs(n: int) -> Transitions:
-        return Transitions.of(
+        return Transitions.pairs(
             rng.random((n, 16)), rng.integers(0, 6, n), rng.random((n, 16)), np.zeros(n, bool)
         )
 
     reward = AdversarialReward(algo, 0.99, pairs(50), seed=1)
     sizes = []
     logits = reward.logits
-    reward.logits = lambda batch: (sizes.append(len(batch.actions)), logits(batch))[1]
+    reward.logits = lambda batch: (sizes.append(len(batch.action)), logits(batch))[1]
     reward.update(pairs(600))
     per_step = [600] * 4 if algo.endswith("d2") else [256, 256, 256, 256, 88, 88] * 4
     assert sizes == per_step  # the demonstrated pairs' minibatch, then the learner's, per step
@@ -198,7 +198,7 @@ def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
 
     rng = np.random.default_rng(1)
     x, x_next = rng.random((3, 16)).astype(np.float32), rng.random((3, 16)).astype(np.float32)
-    expert = Transitions.of(x, np.array([0, 2, 5]), x_next, np.array([False, True, False]))
+    expert = Transitions.pairs(x, np.array([0, 2, 5]), x_next, np.array([False, True, False]))
     reward = AdversarialReward(algo, 0.9, expert, seed=2)
     a, terminal = torch.tensor([0, 2, 5]), torch.tensor([False, True, False])
 
@@ -228,8 +228,8 @@ def test_the_penalty_flattens_the_discriminator_where_the_expert_is():
 
     rng = np.random.default_rng(0)
     a, x_next, terminal = np.zeros(256, int), np.zeros((256, 16)), np.zeros(256, bool)
-    expert = Transitions.of(rng.random((256, 16)) * 0.5, a, x_next, terminal)
-    learner = Transitions.of(rng.random((256, 16)) * 0.5 + 0.5, a, x_next, terminal)
+    expert = Transitions.pairs(rng.random((256, 16)) * 0.5, a, x_next, terminal)
+    learner = Transitions.pairs(rng.random((256, 16)) * 0.5 + 0.5, a, x_next, terminal)
     norms = {}
     for algo in ("gail", "gail-gp"):
         reward = AdversarialReward(algo, 0.9, expert, seed=0)
@@ -313,7 +313,7 @@ def test_expert_transitions_end_terminal_only_in_terminal_states():
 
     t = expert_transitions([demo("target"), demo("timeout"), demo("collision")], lambda phi: phi / 100)
     np.testing.assert_array_equal(t.terminal, [False, True, False, False, False, True])
-    np.testing.assert_allclose(t.x_next[0], np.arange(16, 32) / 100)  # s' is the next state, scaled
+    np.testing.assert_allclose(t.next_phi[0], np.arange(16, 32) / 100)  # s' is the next state, scaled
     with pytest.raises(ValueError, match="nothing to imitate"):
         expert_transitions([demo("timeout", 0)], lambda phi: phi)
     # with an absorbing state, one pair (s_a, ., s_a) after each terminal demonstration
@@ -329,7 +329,7 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
 
     from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
 
-    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail", 0.99, demos, seed=0)
     constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 everywhere
     venv = reward_wrapper(DummyVecEnv([Corridor]), reward)
@@ -341,9 +341,9 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
         rewards.append(float(r[0]))
     np.testing.assert_allclose(rewards, [math.log(2)] * 2, rtol=1e-6)  # never the task's 100
     kept = venv.take()
-    np.testing.assert_array_equal(kept.actions, [3, 4])
-    np.testing.assert_array_equal(kept.x[0], first[0])
-    assert kept.x_next[1][0] == 2.0  # the terminal observation, not the next episode's first
+    np.testing.assert_array_equal(kept.action, [3, 4])
+    np.testing.assert_array_equal(kept.phi[0], first[0])
+    assert kept.next_phi[1][0] == 2.0  # the terminal observation, not the next episode's first
     np.testing.assert_array_equal(kept.terminal, [False, True])
     assert len(venv.take()) == 0  # taken once
 
@@ -354,7 +354,7 @@ def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
 
     from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
 
-    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail-absorbing", 0.75, demos, seed=0)
     constant_heads(reward.discriminator, net=[0.0] * 6)  # D = 1/2: reward ln 2 in every real state
     at_absorbing(reward.discriminator.net, [math.log(3.0)] * 6)  # in s_a: -ln(1 - 3/4) = ln 4
@@ -378,7 +378,7 @@ def test_with_norm_each_reward_is_normalised_by_the_rewards_so_far_itself_includ
 
     from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
 
-    demos = Transitions.of(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
+    demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail-norm", 0.99, demos, seed=0)
     # GAIL's reward softplus(l): ln 2 for l = 0 (action 3), ln(1 + e) for l = 1 (action 4)
     constant_heads(reward.discriminator, net=[0.0, 0.0, 0.0, 0.0, 1.0, 0.0])

@@ -51,7 +51,8 @@ import numpy as np
 import pytest
 import torch
 
-from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+from nirl_mj.data.transitions import Transitions
+from nirl_mj.experiments.adversarial import AdversarialReward
 
 SIDE, GAMMA, HORIZON = 4, 0.9, 25
 N_STATES, N_MOVES, GOAL = SIDE * SIDE, 4, SIDE * SIDE - 1
@@ -112,7 +113,7 @@ def sample(pi: np.ndarray, episodes: int, rng: np.random.Generator) -> Transitio
             if s == GOAL:
                 break
             s = after[-1]
-    return Transitions.of(ONE_HOT[cells], np.array(moves), ONE_HOT[after], np.array(ends))
+    return Transitions.pairs(ONE_HOT[cells], np.array(moves), ONE_HOT[after], np.array(ends))
 
 
 class TabularPolicy:
@@ -126,7 +127,7 @@ class TabularPolicy:
         return None, self.log_pi[x.argmax(dim=1), actions], None
 
 
-EVERY_PAIR = Transitions.of(
+EVERY_PAIR = Transitions.pairs(
     ONE_HOT[np.repeat(np.arange(N_STATES), N_MOVES)],
     np.tile(np.arange(N_MOVES), N_STATES),
     ONE_HOT[NEXT.reshape(-1)],

@@ -1,13 +1,16 @@
 """The inner learner's options, each on a hand-computed case: Q-learning targets, the network
 width, and Polyak averaging of the kept policy."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.data.transitions import Transitions
 from nirl_mj.learn import network, sarsa
-from nirl_mj.learn.config import LearnerConfig
-from nirl_mj.learn.loop import IrlLoop, Transitions
+from nirl_mj.learn.config import LearnerConfig, checked_changes
+from nirl_mj.learn.loop import IrlLoop
 
 PHI = np.array([0, 0, 0, 0, 0, 0, 0, 4, 1, 0, 0, 0, 0, 0, 0, 0], dtype=float)
 
@@ -31,7 +34,7 @@ def transitions(next_action: int, terminal: bool) -> Transitions:
     return Transitions(
         phi=PHI[None], action=np.array([2]), next_phi=PHI[None], next_action=np.array([next_action]),
         terminal=np.array([terminal]), terminal_value=np.array([0.0]), progress=np.zeros(1),
-        remaining=np.ones(1, int),
+        remaining=np.ones(1, int), absorbing=np.zeros(1, bool),
     )  # fmt: skip
 
 
@@ -53,20 +56,16 @@ def test_the_network_width_is_a_setting():
     assert network.get_weights(learner.net)["W2"].shape == (6, 33)
 
 
-def test_polyak_averaging_keeps_the_exponential_average_of_the_weights():
-    learner = loop(weight_averaging=0.75, hidden_units=10)
-    w = [{"W1": np.full((10, 18), float(i)), "W2": np.full((6, 11), 2.0 * i)} for i in (4, 8, 16)]
-    kept = []
-    for weights in w:
-        policy, net = learner._kept_policy(weights)
-        learner.kept.append(policy)
-        kept.append(policy["W1"][0, 0])
-        np.testing.assert_array_equal(network.get_weights(net)["W2"], policy["W2"])
-    # avg_0 = W_0; avg_i = 0.75 avg_(i-1) + 0.25 W_i
-    assert kept == [4.0, 0.75 * 4 + 0.25 * 8, 0.75 * 5 + 0.25 * 16]
-    plain = loop()
-    policy, net = plain._kept_policy(w[0])
-    assert policy is w[0] and net is plain.net  # off: the trained network itself
+def test_a_retired_setting_loads_only_at_the_value_that_did_nothing():
+    # weight_averaging (Polyak averaging of the kept policy) was removed: a record or experiment that
+    # holds 0 (off) loads as it was trained; any other value is refused, naming the commit that runs it
+    record = {**LearnerConfig.preset("default").to_dict(), "weight_averaging": 0.0}
+    assert LearnerConfig.from_record(record) == LearnerConfig.preset("default")
+    with pytest.raises(ValueError, match="weight_averaging = 0.5: Polyak averaging .* commit d3ea6fe"):
+        LearnerConfig.from_record({**record, "weight_averaging": 0.5})
+    with pytest.raises(ValueError, match="--config: weight_averaging = 0.8"):
+        checked_changes({"weight_averaging": 0.8}, "--config")
+    assert checked_changes({"weight_averaging": 0.0, "gamma": 0.5}, "--config") == {"gamma": 0.5}
 
 
 def test_n_step_returns_stop_at_the_end_of_each_trajectory():
@@ -109,9 +108,8 @@ def test_the_reward_ceiling_scales_rewards_into_a_fraction_of_one_minus_gamma():
     learner = IrlLoop(
         LearnerConfig.preset("default", reward_source="progress", gamma=0.9, reward_ceiling=0.5), demos(), 0
     )
-    t = transitions(next_action=-1, terminal=False)
     for progress, expected in ((-1.0, 0.0), (0.0, 0.025), (1.0, 0.05)):
-        t.progress = np.array([progress])
+        t = dataclasses.replace(transitions(next_action=-1, terminal=False), progress=np.array([progress]))
         rewards, spread = learner._rewards(t)
         assert rewards[0] == pytest.approx(expected) and spread == 2.0
     # so the best reward forever is worth 0.05 / (1 - 0.9) = 0.5: half an arrival (1)

@@ -70,8 +70,9 @@ def test_rl_trains_evaluates_on_held_out_arenas_and_refuses_to_overwrite(tmp_pat
     assert main(resume) == 0  # on to a larger total, with the run's own task
     assert json.loads((run / "run.json").read_text())["steps_done"] == 128
     assert main([*args, "--overwrite"]) == 0
-    assert main(["eval", "--run", str(run), "--which", "last", "--quiet"]) == 2
-    assert "an RL run, with one policy" in capsys.readouterr().err
+    assert main(["eval", "--run", str(run), "--which", "last", "--tests", "2", "--quiet"]) == 0
+    assert main(["eval", "--run", str(run), "--which", "3", "--quiet"]) == 2
+    assert "an RL run: --which takes selected or last (got '3')" in capsys.readouterr().err
 
 
 def test_overwrite_replaces_only_an_rl_run(tmp_path, capsys):
@@ -102,7 +103,9 @@ def test_rl_methods_are_validated_in_experiment_files():
     ]
     with pytest.raises(ExperimentError, match="accepted: ppo, dqn, gail, airl"):
         from_dict({**data, "method": {"DQN": {"kind": "rl", "algo": "a2c"}}})
-    with pytest.raises(ExperimentError, match='algo and steps apply to kind = "rl" only'):
+    with pytest.raises(
+        ExperimentError, match='algo, steps, selection, envs, settings apply to kind = "rl" only'
+    ):
         from_dict({"kind": "compare", "methods": ["X"], "method": {"X": {"kind": "bc", "steps": 3}}})
     with pytest.raises(ExperimentError, match="compare experiments only"):
         from_dict({"kind": "sweep", "methods": ["PPO-reward"], "obstacles": [5], "speeds": [2.0]})
@@ -130,3 +133,119 @@ def test_compare_runs_an_rl_method_next_to_the_others(tmp_path):
     phis = np.random.default_rng(0).integers(0, 2, (30, 16)).astype(np.float32)
     runs = [[load_rl_policy(out / "runs" / "PPO" / "0")[0](phi) for phi in phis] for _ in range(2)]
     assert runs[0] == runs[1] and all(isinstance(a, int) and 0 <= a < 6 for a in runs[0])
+
+
+def _rule_demos(tmp_path, episodes: int = 2):
+    from helpers import OPEN
+
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+
+    path = tmp_path / "demos.npz"
+    save_dataset(path, collect(OPEN, ExpertConfig("rule"), episodes=episodes, seed=0))
+    return path
+
+
+def test_every_checkpoint_is_scored_on_the_demonstrations_and_the_best_kept(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.experiments.rl import _demo_scorer, load_rl_policy, train_rl
+
+    demos = _rule_demos(tmp_path)
+    run = tmp_path / "run"
+    record = train_rl(run, OPEN, "gail", 4096, seed=0, demos=demos, checkpoint_every=1024, envs=2)
+    scores = record["scores"]
+    assert [s["steps"] for s in scores] == [1024, 2048, 3072, 4096]
+    best = max(range(len(scores)), key=lambda i: (scores[i]["score"], i))  # the later one on a tie
+    assert record["selected"] == scores[best]
+    assert record["config"]["selection"] == "demo_balanced" and record["config"]["n_steps"] == 512
+    assert "task_success_selection" not in record["reads"]  # GAIL chooses on what it reads anyway
+    # The files are the checkpoints the record names: each scores again what was recorded.
+    trajectories = load_dataset(demos)
+    for name, expected in (("selected.zip", scores[best]["score"]), ("model.zip", scores[-1]["score"])):
+        model = sb3.PPO.load(run / name, device="cpu")
+        assert _demo_scorer(model, trajectories)() == expected
+    phi = np.random.default_rng(1).integers(0, 3, (20, 16)).astype(np.float32)
+    chosen = [load_rl_policy(run, sampled=False, policy=p)[0] for p in ("selected", "last")]
+    if best != len(scores) - 1:  # two different checkpoints may still agree on these states
+        model_files = [(run / n).read_bytes() for n in ("selected.zip", "model.zip")]
+        assert model_files[0] != model_files[1]
+    assert all(0 <= chosen[0](p) < 6 for p in phi)
+
+
+def test_vectorised_training_draws_every_arena_once_and_scores_its_own_episodes(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments.rl import SUCCESS_WINDOW, train_rl
+    from nirl_mj.experiments.seeds import domain_seed
+
+    run, envs = tmp_path / "run", 4
+    record = train_rl(run, OPEN, "ppo", 1024, seed=2, checkpoint_every=512, envs=envs)
+    record = train_rl(run, OPEN, "ppo", 2048, seed=2, checkpoint_every=512, envs=envs, resume=True)
+    seeds = record["train_seeds"]
+    # One stream across the environments and the resume: arenas 0, 1, 2, ... of the train domain.
+    assert seeds == [domain_seed("train", 2, k) for k in range(len(seeds))]
+    assert record["config"]["n_steps"] == 1024 // envs and "task_success_selection" in record["reads"]
+    assert len(set(seeds)) == len(seeds) > 2 * envs  # each environment's first arena, twice, and more
+    for s in record["scores"]:
+        assert 0 < s["episodes"] <= SUCCESS_WINDOW and 0.0 <= s["score"] <= 1.0
+    assert record["selected"] in record["scores"]
+
+
+def test_a_legacy_run_records_no_selection_and_loads_its_last_checkpoint(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments.rl import SETTINGS, load_rl_policy, train_rl
+
+    record = train_rl(tmp_path / "run", OPEN, "ppo", 1024, seed=0, selection="last")
+    assert record["config"] == {"algo": "ppo", **SETTINGS["ppo"]}  # as runs recorded before selection
+    assert "selected" not in record and "scores" not in record
+    assert not (tmp_path / "run" / "selected.zip").exists()
+    load_rl_policy(tmp_path / "run")  # the last checkpoint
+    with pytest.raises(ValueError, match="demo_balanced reads demonstrations; ppo has none"):
+        train_rl(tmp_path / "other", OPEN, "ppo", 1024, selection="demo_balanced")
+    with pytest.raises(ValueError, match="must divide PPO's rollout"):
+        train_rl(tmp_path / "other", OPEN, "ppo", 1024, envs=3)
+
+
+def test_the_table_rows_of_ppo_gail_and_airl_select_and_say_what_they_read():
+    experiment = from_dict({"kind": "compare", "methods": ["PPO-reward", "GAIL", "AIRL", "GAIL-absorbing"]})
+    from nirl_mj.experiments.reads import method_reads
+
+    rows = {m.name: m for m in experiment.methods}
+    assert rows["PPO-reward"].selection == "training_success" and "task_success_selection" in method_reads(
+        rows["PPO-reward"]
+    )
+    assert rows["GAIL"].selection == rows["AIRL"].selection == "demo_balanced"
+    assert "task_success_selection" not in method_reads(rows["GAIL"])
+    identity = {m["name"]: m for m in experiment.identity()["methods"]}
+    assert identity["GAIL"]["selection"] == "demo_balanced"
+    assert "selection" not in identity["GAIL-absorbing"]  # issue 16's variants: as they were recorded
+    with pytest.raises(ExperimentError, match="demo_balanced reads demonstrations"):
+        from_dict({"kind": "compare", "methods": ["P"],
+                   "method": {"P": {"kind": "rl", "algo": "ppo", "selection": "demo_balanced"}}})  # fmt: skip
+
+
+def test_an_experiment_may_tune_ppo_within_its_known_settings():
+    tuned = {"learning_rate": 1e-4, "n_epochs": 5}
+    data = {
+        "kind": "compare",
+        "methods": ["P"],
+        "method": {"P": {"kind": "rl", "algo": "ppo", "settings": tuned}},
+    }
+    (method,) = from_dict(data).methods
+    from nirl_mj.experiments.rl import run_config
+
+    config = run_config(method.algo, method.selection, method.envs, method.settings)
+    assert config["learning_rate"] == 1e-4 and config["n_epochs"] == 5
+    assert from_dict(data).identity()["methods"][0]["settings"] == {"learning_rate": 1e-4, "n_epochs": 5}
+    # untuned methods keep the identity they had before the key existed
+    assert (
+        "settings" not in from_dict({"kind": "compare", "methods": ["PPO-reward"]}).identity()["methods"][0]
+    )
+    for bad, message in (({"lr": 1.0}, "settings.lr: accepted: learning_rate"),
+                         ({"n_epochs": 2.5}, "settings.n_epochs = 2.5: expected a positive int"),
+                         ({"learning_rate": -1.0}, "expected a positive float")):  # fmt: skip
+        with pytest.raises(ExperimentError, match=message):
+            from_dict({**data, "method": {"P": {"kind": "rl", "settings": bad}}})

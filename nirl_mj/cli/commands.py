@@ -15,7 +15,7 @@ from tqdm import tqdm
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.outcomes import summarise
-from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
 from nirl_mj.experiments import compare, sweep
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
@@ -268,7 +268,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
     out = RunDir(args.out)
     if args.overwrite and not args.resume and not out.is_empty():
-        extra = out.names() - {RUN_FILE, MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
+        extra = out.names() - {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
         if not out.is_run or out.read_record().get("kind") != "rl" or extra:
             raise RunError(f"{out} is not an RL run directory; --overwrite replaces only an RL run")
         shutil.rmtree(out.path)
@@ -285,7 +285,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
             bar.set_postfix(episodes=stats["episodes"], succ=f"{stats['success']:.2f}", refresh=False)
 
         record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress,
-                          demos=args.demos)  # fmt: skip
+                          demos=args.demos, selection=args.selection, envs=args.envs)  # fmt: skip
     arenas = len(record["train_seeds"])
     print(f"trained {args.algo} for {record['steps_done']} decisions ({arenas} training arenas) on "
           f"{spec.name}; run in {args.out} (test it with nirl-mj eval --run {args.out})")  # fmt: skip

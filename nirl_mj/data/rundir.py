@@ -36,7 +36,7 @@ from nirl_mj.data.atomic import AtomicFile, leftover_temporaries, write_npz, wri
 
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
-MODEL_FILE = "model.zip"
+MODEL_FILE, SELECTED_MODEL_FILE = "model.zip", "selected.zip"
 POLICIES = ("selected", "last")
 RECORD_KEYS = ("task", "config", "seed", "demos", "demo_seeds", "validation_seeds")
 """What every run record holds from its start."""
@@ -171,16 +171,18 @@ class RunDir:
         arrays = {f"selected/{k}": v for k, v in selected.items()}
         write_npz(self.file(POLICY_FILE), arrays | {f"last/{k}": v for k, v in last.items()})
 
-    def model_file(self) -> Path:
-        """``model.zip`` of a reinforcement-learning run, with a clear error if it is missing."""
-        path = self.file(MODEL_FILE)
+    def model_file(self, name: str = MODEL_FILE) -> Path:
+        """``model.zip`` (or ``name``, e.g. ``selected.zip``) of a reinforcement-learning run, with a
+        clear error if it is missing."""
+        path = self.file(name)
         if not path.is_file():
-            raise RunError(f"{self.path} has no {MODEL_FILE}: its training has not reached a checkpoint")
+            raise RunError(f"{self.path} has no {name}: its training has not reached a checkpoint")
         return path
 
-    def write_model(self, save: Callable[[Path], object]) -> None:
-        """Writes ``model.zip`` atomically: ``save(path)`` writes a model to a temporary path."""
-        with AtomicFile(self.file(MODEL_FILE), ".zip") as target:
+    def write_model(self, save: Callable[[Path], object], name: str = MODEL_FILE) -> None:
+        """Writes ``model.zip`` (or ``name``) atomically: ``save(path)`` writes a model to a temporary
+        path."""
+        with AtomicFile(self.file(name), ".zip") as target:
             save(target.tmp)
 
     @staticmethod

@@ -31,7 +31,6 @@ Needs the optional extra ``nirl-mj[gym]``.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -41,7 +40,8 @@ import torch
 
 from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import RunDir, RunError
-from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.data.transitions import Transitions
 from nirl_mj.learn.adversarial import (
     N_INPUTS,
     PENALTY_WEIGHT,
@@ -66,65 +66,20 @@ SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 """The discriminator's training per PPO rollout (recorded in the run)."""
 
 
-@dataclass(frozen=True)
-class Transitions:
-    """Pairs (x (N, 16) scaled phi(s), a (N,), x' (N, 16), terminal (N,) bool, absorbing (N,)
-    bool: the pair (s_a, ., s_a), whose x, a and x' are zeros and never read)."""
-
-    x: np.ndarray
-    actions: np.ndarray
-    x_next: np.ndarray
-    terminal: np.ndarray
-    absorbing: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.actions)
-
-    def take(self, rows: np.ndarray) -> Transitions:
-        return Transitions(*(getattr(self, f.name)[rows] for f in dataclasses.fields(self)))
-
-    @staticmethod
-    def of(x, actions, x_next, terminal) -> Transitions:
-        """Pairs of real states: none absorbing."""
-        return Transitions(x, actions, x_next, terminal, np.zeros(len(actions), bool))
-
-    @staticmethod
-    def absorbing_pairs(count: int) -> Transitions:
-        """``count`` pairs (s_a, ., s_a)."""
-        zeros = np.zeros((count, N_INPUTS), np.float32)
-        ones = np.ones(count, bool)
-        return Transitions(zeros, np.zeros(count, np.int64), zeros, ones, ones)
-
-    @staticmethod
-    def concat(parts: Sequence[Transitions]) -> Transitions:
-        fields = [f.name for f in dataclasses.fields(Transitions)]
-        return Transitions(*(np.concatenate([getattr(p, name) for p in parts]) for name in fields))
-
-
 def expert_transitions(demos: Sequence[Trajectory], scale, absorbing: bool = False) -> Transitions:
-    """Every demonstrated (s, a, s'), terminal where the demonstration ended in a terminal state
-    (arrival, collision or a physics error, as the environment and NIRL's loop end them; a timeout
-    is a truncation). With ``absorbing``, each terminal demonstration adds one pair (s_a, ., s_a)."""
-    parts = []
-    for t in demos:
-        n = len(t)
-        if n == 0:
-            continue
-        terminal = np.zeros(n, bool)
-        terminal[-1] = t.outcome in TERMINAL_OUTCOMES
-        x, x_next = scale(t.features[:-1]), scale(t.features[1:])
-        parts.append(Transitions.of(x, np.asarray(t.actions), x_next, terminal))
-        if absorbing and terminal[-1]:
-            parts.append(Transitions.absorbing_pairs(1))
-    if not parts:
+    """Every demonstrated (s, a, s') with phi scaled by ``scale``, terminal where the demonstration
+    ended in a terminal state (as the environment and NIRL's loop end them; a timeout is a
+    truncation). With ``absorbing``, each terminal demonstration adds one pair (s_a, ., s_a)."""
+    rows = Transitions.of(demos, absorbing=absorbing)
+    if not len(rows):
         raise ValueError("the demonstrations hold no state-action pair: there is nothing to imitate")
-    return Transitions.concat(parts)
+    return rows.mapped(scale)
 
 
 def _tensors(t: Transitions) -> tuple[torch.Tensor, ...]:
     as_tensor = torch.as_tensor
-    return (as_tensor(t.x, dtype=torch.float32), as_tensor(t.actions, dtype=torch.long),
-            as_tensor(t.x_next, dtype=torch.float32), as_tensor(t.terminal, dtype=torch.bool),
+    return (as_tensor(t.phi, dtype=torch.float32), as_tensor(t.action, dtype=torch.long),
+            as_tensor(t.next_phi, dtype=torch.float32), as_tensor(t.terminal, dtype=torch.bool),
             as_tensor(t.absorbing, dtype=torch.bool))  # fmt: skip
 
 
@@ -344,7 +299,7 @@ def reward_wrapper(venv, reward: AdversarialReward):
                     x_next[i] = info["terminal_observation"]
                     terminal[i] = not info.get("TimeLimit.truncated", False)
             actions = self.actions.reshape(-1).astype(np.int64)
-            batch = Transitions.of(self.last_obs.copy(), actions, x_next, terminal)
+            batch = Transitions.pairs(self.last_obs.copy(), actions, x_next, terminal)
             self.kept.append(batch)
             if reward.absorbing and terminal.any():
                 self.kept.append(Transitions.absorbing_pairs(int(terminal.sum())))
@@ -353,7 +308,7 @@ def reward_wrapper(venv, reward: AdversarialReward):
 
         def take(self) -> Transitions:
             kept, self.kept = self.kept, []
-            return Transitions.concat(kept) if kept else Transitions.absorbing_pairs(0)
+            return Transitions.concat(kept) if kept else Transitions.empty()
 
     return DiscriminatorReward()
 

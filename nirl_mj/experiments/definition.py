@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from nirl_mj.experiments.rl import ALGOS
+from nirl_mj.experiments.rl import ALGOS, LEGACY, SELECTIONS, run_config
 from nirl_mj.experiments.seeds import TEST_DOMAINS
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
@@ -47,8 +47,8 @@ KEYS = {
     "sweep": (*COMMON_KEYS, "obstacles", "speeds"),
 }
 DEMO_KEYS = ("expert", "episodes", "per_run")
-METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps")
-RL_KEYS = ("algo", "steps")  # kind = "rl" only
+METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps", "selection", "envs", "settings")
+RL_KEYS = ("algo", "steps", "selection", "envs", "settings")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
 SET_SECTIONS = ("arena", "robot", "sensing", "control")
@@ -63,8 +63,10 @@ class ExperimentError(SpecError):
 class MethodSpec:
     """One row of the results. ``variant`` also chooses behaviour cloning's settings (``kind = "bc"``:
     ``learn.bc.CloneSettings.of``); ``variant``/``method``/``config`` matter for ``kind = "irl"``:
-    ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo`` and
-    ``steps`` (decisions of training) for ``kind = "rl"`` only."""
+    ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo``,
+    ``steps`` (decisions of training), ``selection`` (``experiments.rl.SELECTIONS``), ``envs``
+    (environments sharing each rollout) and ``settings`` (PPO's, ``experiments.rl.TUNABLE``) for
+    ``kind = "rl"`` only."""
 
     name: str
     kind: str
@@ -73,6 +75,9 @@ class MethodSpec:
     config: dict = field(default_factory=dict)
     algo: str = "ppo"
     steps: int = 50_000
+    selection: str = LEGACY["selection"]
+    envs: int = LEGACY["envs"]
+    settings: dict = field(default_factory=dict)  # rl: changes to PPO's settings (experiments.rl.TUNABLE)
 
     @property
     def trains(self) -> bool:
@@ -83,6 +88,11 @@ class MethodSpec:
         """The learner's configuration: the variant's, then the experiment's ``[config]``, then ours."""
         return LearnerConfig.preset(self.variant, **{**shared, **self.config, "method": self.method})
 
+
+RL_STEPS, RL_ENVS = 50_000, 8
+"""The budget (decisions) and the environments per rollout of GAIL and AIRL (the rows of
+tasks/table1.toml; the variants of issue 16 keep one environment and no selection); the RL reference
+trains twice as long with a third of PPO's learning rate."""
 
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
@@ -106,10 +116,22 @@ BUILTIN_METHODS = {
     "DAgger": MethodSpec("DAgger", "dagger"),
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
-    "PPO-reward": MethodSpec("PPO-reward", "rl", algo="ppo", steps=50_000),
-    # adversarial imitation: PPO (the RL reference's settings and budget) on a discriminator's reward
-    "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=50_000),
-    "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=50_000),
+    # the RL reference, its checkpoint chosen by the success of its own training episodes (it reads
+    # the task's reward anyway); budget and learning rate tuned on the development domain
+    # (tasks/ablations/rl_reference.toml)
+    "PPO-reward": MethodSpec(
+        "PPO-reward",
+        "rl",
+        algo="ppo",
+        steps=2 * RL_STEPS,
+        selection="training_success",
+        envs=RL_ENVS,
+        settings={"learning_rate": 1e-4},
+    ),  # fmt: skip
+    # adversarial imitation: PPO (the RL reference's settings and budget) on a discriminator's reward,
+    # its checkpoint chosen by the paper's rule (balanced accuracy on the demonstrations)
+    "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
+    "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
     "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
     "AIRL-absorbing": MethodSpec("AIRL-absorbing", "rl", algo="airl-absorbing", steps=50_000),
@@ -343,7 +365,7 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         if kind not in ("irl", "bc", "dagger") and "variant" in table:
             raise ExperimentError(f'{where}: variant applies to kind = "irl", "bc" and "dagger" only')
         if kind != "rl" and any(k in table for k in RL_KEYS):
-            raise ExperimentError(f'{where}: algo and steps apply to kind = "rl" only')
+            raise ExperimentError(f'{where}: {", ".join(RL_KEYS)} apply to kind = "rl" only')
         method = MethodSpec(
             name,
             kind,
@@ -352,7 +374,15 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             changes,
             _choice(table.get("algo", default.algo), ALGOS, f"{where}.algo"),
             _int(table.get("steps", default.steps), f"{where}.steps", 1),
+            _choice(table.get("selection", default.selection), SELECTIONS, f"{where}.selection"),
+            _int(table.get("envs", default.envs), f"{where}.envs", 1),
+            _table(table.get("settings", default.settings), f"{where}.settings"),
         )
+    if method.kind == "rl":
+        try:
+            run_config(method.algo, method.selection, method.envs, method.settings)
+        except ValueError as exc:
+            raise ExperimentError(f"{where}: {exc}") from None
     if method.trains:
         try:
             method.learner_config(config)
@@ -368,11 +398,13 @@ computed after. The paper variant is the fit of before, and its identity is as i
 
 
 def _method_identity(method: MethodSpec) -> dict:
-    """A method as JSON for the experiment's identity; ``algo`` and ``steps`` only for kind "rl", so
-    that the identity of an experiment written before they existed is unchanged."""
+    """A method as JSON for the experiment's identity; ``algo`` and ``steps`` only for kind "rl", and
+    ``selection`` and ``envs`` only where they are not the legacy ones, so that the identity of an
+    experiment written before they existed is unchanged."""
     data = dataclasses.asdict(method)
-    if method.kind != "rl":
-        for key in RL_KEYS:
+    legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
+    for key in RL_KEYS:
+        if method.kind != "rl" or (legacy and key in LEGACY) or (key == "settings" and not method.settings):
             del data[key]
     if method.kind in ("bc", "dagger") and method.variant == "default":
         data["clone"] = CLONE_FIT

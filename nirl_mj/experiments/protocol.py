@@ -252,7 +252,9 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
 
         if train:
             demos = job.demos_path if job.method.algo in ADVERSARIAL else None
-            ensure_rl_trained(job.run_dir, job.task, job.method.algo, job.method.steps, job.seed, demos)
+            m = job.method
+            ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
+                              m.settings)  # fmt: skip
         policy, record = load_rl_policy(job.run_dir)
         seen = set(record["train_seeds"]) & set(job.test_seeds)
         if seen:

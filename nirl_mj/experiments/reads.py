@@ -20,7 +20,8 @@ VOCABULARY = {
     "episode_end": "that an episode of its own ended (a terminal state), not how: the dynamics",
     "task_outcome": "how an episode ended: arrival, collision or timeout",
     "task_reward": "the task's reward (progress, +1 on arrival, -1 on collision)",
-    "task_success_selection": "the task's success on validation arenas, to choose a policy",
+    "task_success_selection": "the task's success on arenas other than the tests (validation arenas, or "
+    "its own training episodes), to choose a policy",
     "interactive_expert": "the expert queried in states the learner visits (DAgger)",
     "hand_written": "a policy written by hand for this task (it knows the goal without learning it)",
 }
@@ -50,11 +51,14 @@ def learner_reads(config: Any) -> list[str]:
     return _ordered(words)
 
 
-def rl_reads(algo: str) -> list[str]:
+def rl_reads(algo: str, selection: str = "last") -> list[str]:
     """What a Stable-Baselines3 run reads: the task's reward (PPO, DQN), or the demonstrations
-    through a discriminator (GAIL, AIRL and their variants); none chooses among checkpoints."""
+    through a discriminator (GAIL, AIRL and their variants); and the task's success if it chooses
+    among its checkpoints by it (``experiments.rl.SELECTIONS``)."""
     words = {"features", "episode_end"}
     words |= {"task_reward", "task_outcome"} if algo in ("ppo", "dqn") else {"demonstrations"}
+    if selection == "training_success":
+        words.add("task_success_selection")
     return _ordered(words)
 
 
@@ -65,7 +69,7 @@ def method_reads(method: Any, shared_config: dict | None = None) -> list[str]:
     if kind == "irl":
         return learner_reads(method.learner_config(shared_config or {}))
     if kind == "rl":
-        return rl_reads(method.algo)
+        return rl_reads(method.algo, method.selection)
     if kind == "bc":
         return _ordered({"demonstrations", "features"})
     if kind == "dagger":

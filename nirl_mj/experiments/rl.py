@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from nirl_mj.data.rundir import MODEL_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.data.rundir import MODEL_FILE, POLICIES, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
 from nirl_mj.experiments.reads import rl_reads
 from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
@@ -58,6 +58,70 @@ for _kind in ADVERSARIAL:  # the policy learner is PPO, with the RL reference's 
     SETTINGS[_kind] = dict(SETTINGS["ppo"])
 """Each algorithm's settings (recorded in the run; a resume must use the same)."""
 
+SELECTIONS = ("last", "demo_balanced", "training_success")
+"""How a run chooses the policy it hands to tests among its checkpoints: ``last`` (the last
+checkpoint); ``demo_balanced``, the paper's rule as NIRL uses it (the greedy action's balanced
+accuracy on the demonstrations; GAIL and AIRL, which read them anyway); ``training_success``, the
+task's success over the last :data:`SUCCESS_WINDOW` training episodes that ended before the
+checkpoint (every one on a fresh arena; PPO and DQN, which read the task's reward anyway; recorded
+as ``task_success_selection``). The best score wins, the later checkpoint on a tie."""
+SUCCESS_WINDOW = 30
+"""Training episodes that ``training_success`` scores a checkpoint on (about the episodes of 5,000
+decisions, one checkpoint's span, at Table I's 20 obstacles)."""
+LEGACY = {"selection": "last", "envs": 1}
+"""What a run recorded before selection and vectorised environments existed did: its config holds
+neither key, so it still resumes and its cells keep their identity."""
+
+
+def default_selection(algo: str) -> str:
+    """The selection an experiment's ``algo`` row uses unless told: each reads only what it reads."""
+    return "demo_balanced" if algo in ADVERSARIAL else "training_success"
+
+
+TUNABLE = {"learning_rate": float, "n_epochs": int, "batch_size": int, "ent_coef": float, "clip_range": float,
+           "gae_lambda": float, "gamma": float}  # fmt: skip
+"""PPO's settings an experiment may change (``[method.NAME] settings = {...}``), with their types."""
+
+
+def tuned(algo: str, changes: dict) -> dict:
+    """``changes`` to PPO's settings checked (:data:`TUNABLE`): ValueError naming the key and what
+    is accepted."""
+    if changes and algo == "dqn":
+        raise ValueError("settings apply to PPO and its adversarial learners, not dqn")
+    out = {}
+    for key, value in changes.items():
+        kind = TUNABLE.get(key)
+        if kind is None:
+            raise ValueError(f"settings.{key}: accepted: {', '.join(TUNABLE)}")
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not kind or not value > 0:
+            raise ValueError(f"settings.{key} = {value!r}: expected a positive {kind.__name__}")
+        out[key] = value
+    return out
+
+
+def run_config(algo: str, selection: str, envs: int, changes: dict | None = None) -> dict:
+    """The settings a run records: the algorithm's with ``changes`` (:func:`tuned`), PPO's rollout
+    split over ``envs`` environments (``n_steps`` per environment, the same decisions per update),
+    and the selection."""
+    if selection not in SELECTIONS:
+        raise ValueError(f"selection {selection!r}: accepted: {', '.join(SELECTIONS)}")
+    if selection == "demo_balanced" and algo not in ADVERSARIAL:
+        raise ValueError(f"selection demo_balanced reads demonstrations; {algo} has none: use "
+                         "training_success or last")  # fmt: skip
+    if envs < 1:
+        raise ValueError(f"envs = {envs}: must be >= 1")
+    config = {"algo": algo, **SETTINGS[algo], **tuned(algo, changes or {})}
+    if (selection, envs) == (LEGACY["selection"], LEGACY["envs"]):
+        return config
+    if "n_steps" in config:
+        if config["n_steps"] % envs:
+            raise ValueError(f"envs = {envs}: must divide PPO's rollout of {config['n_steps']} decisions")
+        config["n_steps"] //= envs
+    return {**config, "selection": selection, "envs": envs}
+
+
 _SCALE = 1.0 / feature_bounds()[1]  # phi / its upper bounds: every input in [0, 1]
 
 
@@ -74,21 +138,47 @@ def _algorithm(algo: str):
     return stable_baselines3.DQN if algo == "dqn" else stable_baselines3.PPO
 
 
-def _environment(task: specs.TaskSpec, seed: int, first_episode: int):
-    """One training environment, phi(s) scaled, arenas from the train domain; returns it and its
-    :class:`ArenaSeeds`."""
+def _environment(task: specs.TaskSpec, seed: int, first_episode: int, envs: int = 1, legacy: bool = False):
+    """``envs`` training environments stepped in turn in one process, phi(s) scaled; every episode
+    draws the next arena of the train domain from one :class:`ArenaStream` (returned with them).
+    ``legacy``: as runs before 2026-11-26 trained, the first episode in the arena of seed ``seed``
+    (Stable-Baselines3's seeding), the later ones from the stream."""
     import gymnasium
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     from nirl_mj.gym.env import NavigationEnv
-    from nirl_mj.gym.wrappers import ArenaSeeds
+    from nirl_mj.gym.wrappers import ArenaSeeds, ArenaStream
 
-    env = NavigationEnv(task, observation="features")
-    arenas = ArenaSeeds(env, lambda k: domain_seed("train", seed, k), start=first_episode)
+    stream = ArenaStream(lambda k: domain_seed("train", seed, k), start=first_episode)
     box = gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)
-    wrapped = gymnasium.wrappers.TransformObservation(arenas, scaled, box)
-    return DummyVecEnv([lambda: Monitor(wrapped, info_keywords=("is_success",))]), arenas
+
+    def make() -> gymnasium.Env:
+        arenas = ArenaSeeds(
+            NavigationEnv(task, observation="features"), stream=stream, replace_given=not legacy
+        )
+        wrapped = gymnasium.wrappers.TransformObservation(arenas, scaled, box)
+        return Monitor(wrapped, info_keywords=("is_success",))
+
+    return DummyVecEnv([make] * envs), stream
+
+
+def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
+    """The greedy action's balanced accuracy on the demonstrated pairs (selection demo_balanced)."""
+    import torch
+
+    from nirl_mj.data.trajectory import stack_pairs
+    from nirl_mj.learn.predictability import balanced_accuracy
+
+    phi, actions = stack_pairs(trajectories)
+    x = torch.as_tensor(scaled(phi))
+
+    def score() -> float:
+        with torch.no_grad():
+            probs = model.policy.get_distribution(x).distribution.probs
+        return balanced_accuracy(actions, probs.argmax(dim=1).numpy())
+
+    return score
 
 
 def train_rl(
@@ -98,12 +188,18 @@ def train_rl(
     steps: int = 50_000,
     seed: int = 0,
     resume: bool = False,
-    checkpoint_every: int = 10_000,
+    checkpoint_every: int = 5_000,
     on_steps: Callable[[int, dict], None] | None = None,
     demos: str | os.PathLike | None = None,
+    selection: str | None = None,
+    envs: int = 1,
+    changes: dict | None = None,
 ) -> dict:
     """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
-    GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate.
+    GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate. ``selection``
+    (:data:`SELECTIONS`; default :func:`default_selection`) scores every checkpoint and keeps the
+    best in ``selected.zip``; ``envs`` environments share each rollout; ``changes`` tune PPO
+    (:func:`tuned`).
 
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
     100 training episodes)."""
@@ -112,6 +208,10 @@ def train_rl(
         raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
+    selection = selection or default_selection(algo)
+    config = run_config(algo, selection, envs, changes)
+    if checkpoint_every % envs:
+        raise ValueError(f"checkpoint_every = {checkpoint_every}: must be a multiple of envs = {envs}")
     adversarial = algo in ADVERSARIAL
     if adversarial and demos is None:
         raise ValueError(f"{algo} imitates demonstrations: give --demos (a dataset)")
@@ -121,14 +221,12 @@ def train_rl(
         from nirl_mj.experiments import adversarial as adv
 
         trajectories = load_dataset(demos)
-    config = {"algo": algo, **SETTINGS[algo]}
-    if adversarial:
         config["discriminator"] = adv.variant_of(algo).settings()
     run = RunDir(run_dir)
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}), "validation_seeds": [],
-              "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo)}  # fmt: skip
+              "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo, selection)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
     if resume:
         saved = run.read_record()
@@ -147,7 +245,8 @@ def train_rl(
     else:
         run.write_record(record)
 
-    venv, arenas = _environment(task, seed, len(record["train_seeds"]))
+    legacy = "selection" not in config
+    venv, arenas = _environment(task, seed, len(record["train_seeds"]), envs, legacy)
     callbacks = []
     if adversarial:
         expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
@@ -156,36 +255,60 @@ def train_rl(
             reward.load_state(adv.read_discriminator(run))
         venv = adv.reward_wrapper(venv, reward)
         callbacks.append(adv.training_callback(venv, reward))
+    settings = {k: v for k, v in config.items() if k not in ("algo", "selection", "envs", "discriminator")}
     if resume and run.file(MODEL_FILE).is_file():
         model = cls.load(run.model_file(), env=venv, device="cpu")
     else:
-        model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **SETTINGS[algo])
+        model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
     if adversarial:
         reward.policy = model.policy
     done_before = list(record["train_seeds"])
+    demo_score = _demo_scorer(model, trajectories) if selection == "demo_balanced" else None
 
-    def checkpoint() -> None:
+    def checkpoint(outcomes: list[bool]) -> None:
+        """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
+        ``outcomes``: the last training episodes ended (at most :data:`SUCCESS_WINDOW`)."""
         if adversarial:
             adv.save_discriminator(run, reward)
         run.write_model(model.save)
-        record.update(steps_done=int(model.num_timesteps), train_seeds=[*done_before, *arenas.used])
+        steps_now = int(model.num_timesteps)
+        best = record.get("selected")
+        score = None
+        if demo_score is not None:
+            score = demo_score()
+        elif selection == "training_success" and outcomes:
+            score = float(np.mean(outcomes))
+        if score is not None:
+            record["scores"] = [*record.get("scores", []), {"steps": steps_now, "score": score,
+                                                             "episodes": len(outcomes)}]  # fmt: skip
+            if best is None or (score >= best["score"] and steps_now > best["steps"]):
+                run.write_model(model.save, SELECTED_MODEL_FILE)
+                record["selected"] = record["scores"][-1]
+        record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
         run.write_record(record)
 
-    callbacks.append(_Progress(checkpoint, checkpoint_every, on_steps))
+    progress = _Progress(checkpoint, checkpoint_every, on_steps)
+    callbacks.append(progress)
     model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
-    checkpoint()
+    if int(model.num_timesteps) != record["steps_done"]:
+        progress.checkpoint_now()
     venv.close()
     return record
 
 
-def _Progress(checkpoint: Callable[[], None], every: int, on_steps) -> Any:
-    """A Stable-Baselines3 callback: progress after every step, a checkpoint every ``every`` steps."""
+def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps) -> Any:
+    """A Stable-Baselines3 callback: progress after every step, a checkpoint every ``every`` steps
+    (handed the outcomes of the last training episodes, at most :data:`SUCCESS_WINDOW`; a resume
+    starts counting anew)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Progress(BaseCallback):
         def __init__(self) -> None:
             super().__init__()
             self.outcomes: list[bool] = []
+
+        def checkpoint_now(self) -> None:
+            checkpoint(self.outcomes[-SUCCESS_WINDOW:])
 
         def _on_step(self) -> bool:
             for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
@@ -196,7 +319,7 @@ def _Progress(checkpoint: Callable[[], None], every: int, on_steps) -> Any:
                 on_steps(self.training_env.num_envs, {"episodes": len(self.outcomes),
                          "success": sum(recent) / len(recent) if recent else float("nan")})  # fmt: skip
             if self.num_timesteps % every == 0:
-                checkpoint()
+                self.checkpoint_now()
             return True
 
     return Progress()
@@ -209,6 +332,9 @@ def ensure_rl_trained(
     steps: int,
     seed: int,
     demos: str | os.PathLike | None = None,
+    selection: str | None = None,
+    envs: int = 1,
+    changes: dict | None = None,
 ) -> dict:
     """Trains the run, resumes it from its last checkpoint, or returns a finished one's record (an
     experiment's cell: ``nirl_mj.experiments.protocol.policy_of``)."""
@@ -217,7 +343,8 @@ def ensure_rl_trained(
         record = run.read_record()
         if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
             return record
-    return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos)
+    return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos, selection=selection,
+                    envs=envs, changes=changes)  # fmt: skip
 
 
 def is_rl_run(record: dict) -> bool:
@@ -225,9 +352,10 @@ def is_rl_run(record: dict) -> bool:
 
 
 def load_rl_policy(
-    run_dir: str | os.PathLike, sampled: bool = True, seed: int = 0
+    run_dir: str | os.PathLike, sampled: bool = True, seed: int = 0, policy: str = "selected"
 ) -> tuple[Callable[[np.ndarray], int | np.ndarray], dict]:
-    """The trained RL policy on phi(s) and the run's record.
+    """The trained RL policy on phi(s) and the run's record: the checkpoint its selection chose
+    (``policy="selected"``; the last one for a run that selects none) or the last (``"last"``).
 
     PPO's policy is a distribution over the six actions; with ``sampled`` (the default for PPO)
     each action is drawn from it with a generator seeded by ``seed``, so an evaluation is
@@ -239,7 +367,10 @@ def load_rl_policy(
     record = run.read_record()
     if not is_rl_run(record):
         raise RunError(f"{run} is not an RL run ({RUN_FILE} has no kind = rl)")
-    model = _algorithm(record["algo"]).load(run.model_file(), device="cpu")
+    if policy not in POLICIES:
+        raise ValueError(f"policy {policy!r}: accepted: {', '.join(POLICIES)}")
+    chosen = SELECTED_MODEL_FILE if policy == "selected" and "selected" in record else MODEL_FILE
+    model = _algorithm(record["algo"]).load(run.model_file(chosen), device="cpu")
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )

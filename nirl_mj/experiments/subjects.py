@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nirl_mj.data.dataset import load_dataset
+from nirl_mj.data.rundir import POLICIES as RUN_POLICIES
 from nirl_mj.data.rundir import RUN_FILE, RunDir, RunError
 from nirl_mj.experiments.seeds import held_out_seeds, seen_seeds
 from nirl_mj.experiments.training import load_policy
@@ -58,14 +59,15 @@ class Subject:
 
 def run_subject(run_dir: str | os.PathLike, which: str = "selected", task: str | None = None) -> Subject:
     """A trained run's greedy policy (``which``: selected, last or an iteration number; an RL run
-    (``nirl-mj rl``) has its last only), on its own task unless ``task`` (a name or path) is given."""
+    (``nirl-mj rl``) has its selected and last checkpoints only), on its own task unless ``task`` (a
+    name or path) is given."""
     run = RunDir(run_dir)
     if run.read_record().get("kind") == "rl":  # a reinforcement-learning reference (nirl-mj rl)
-        if which != "selected":
-            raise RunError(f"{run} is an RL run, with one policy: give no --which (got {which!r})")
+        if which not in RUN_POLICIES:
+            raise RunError(f"{run} is an RL run: --which takes {' or '.join(RUN_POLICIES)} (got {which!r})")
         from nirl_mj.experiments.rl import load_rl_policy  # needs the optional extra nirl-mj[gym]
 
-        policy, record = load_rl_policy(run_dir)
+        policy, record = load_rl_policy(run_dir, policy=which)
         name = f"rl-{record['algo']}"
     else:
         (policy, record), name = load_policy(run_dir, which), "nirl"

@@ -7,20 +7,49 @@ from collections.abc import Callable
 import gymnasium
 
 
+class ArenaStream:
+    """The arenas of a learner's training: the k-th draw (k from ``start``) is ``arena_seed(k)``,
+    whichever of several environments asks for it, and every draw is remembered in :attr:`used`."""
+
+    def __init__(self, arena_seed: Callable[[int], int], start: int = 0) -> None:
+        self._arena_seed = arena_seed
+        self._next = start
+        self.used: list[int] = []
+
+    def draw(self) -> int:
+        seed = self._arena_seed(self._next)
+        self._next += 1
+        self.used.append(seed)
+        return seed
+
+
 class ArenaSeeds(gymnasium.Wrapper):
     """Every reset without a seed draws the arena of ``arena_seed(k)`` for the k-th such reset
     (k from ``start``), and remembers it in :attr:`used`: a learner's training arenas come from
-    a known stream, which held-out tests can skip (``nirl_mj.experiments.seeds``)."""
+    a known stream, which held-out tests can skip (``nirl_mj.experiments.seeds``). Environments
+    that share a ``stream`` (vectorised training) draw from it in turn, never the same arena. With
+    ``replace_given``, a reset with a seed draws from the stream too: Stable-Baselines3 seeds the
+    first reset of its i-th environment with its own seed + i, an arena outside the stream."""
 
-    def __init__(self, env: gymnasium.Env, arena_seed: Callable[[int], int], start: int = 0) -> None:
+    def __init__(
+        self,
+        env: gymnasium.Env,
+        arena_seed: Callable[[int], int] | None = None,
+        start: int = 0,
+        stream: ArenaStream | None = None,
+        replace_given: bool = False,
+    ) -> None:
         super().__init__(env)
-        self._arena_seed = arena_seed
-        self.used: list[int] = []
-        self._next = start
+        if (arena_seed is None) == (stream is None):
+            raise ValueError("ArenaSeeds takes an arena_seed function or a shared stream, one of the two")
+        self.stream = stream if stream is not None else ArenaStream(arena_seed, start)
+        self.replace_given = replace_given
+
+    @property
+    def used(self) -> list[int]:
+        return self.stream.used
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        if seed is None:
-            seed = self._arena_seed(self._next)
-            self._next += 1
-            self.used.append(seed)
+        if seed is None or self.replace_given:
+            seed = self.stream.draw()
         return self.env.reset(seed=seed, options=options)

@@ -92,9 +92,6 @@ class LoopConfig:
     bootstrap: str = "q"
     hidden_units: int = 32
     n_step: int = 3
-    # the kept policy: the trained network (0) or the exponential average of its weights with this
-    # decay b in [0, 1), avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging)
-    weight_averaging: float = 0.0
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
 
     @property
@@ -113,7 +110,7 @@ class LoopConfig:
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
-                reward_ceiling=(0.0, 1.0, "(]"), weight_averaging=(0.0, 1.0, "[)"))  # fmt: skip
+                reward_ceiling=(0.0, 1.0, "(]"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
                 hidden_units=1, n_step=1)  # fmt: skip
@@ -237,7 +234,6 @@ VARIANTS = tuple(PRESETS)
 RECORD_FALLBACKS: dict[str, Any] = {
     "bootstrap": "sarsa",
     "hidden_units": 10,
-    "weight_averaging": 0.0,
     "n_step": 1,
     "reward_ceiling": 1.0,
     "input_bearing": False,
@@ -245,6 +241,15 @@ RECORD_FALLBACKS: dict[str, Any] = {
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""
+RETIRED: dict[str, tuple[Any, str]] = {
+    "weight_averaging": (
+        0.0,
+        "Polyak averaging of the kept policy's weights, retired on 2026-11-26: it did "
+        "not pay (docs/ALGORITHM.md); commit d3ea6fe still runs it",
+    ),
+}
+"""Fields that were removed, with the value at which they did nothing: a record or experiment that
+holds one at that value loads as it was trained; any other value is refused with the reason."""
 
 
 def _choice(name: str, value: Any, accepted: tuple[str, ...]) -> None:
@@ -273,6 +278,16 @@ def _counts(config: Any, **minimums: int) -> None:
         value = getattr(config, name)
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ValueError(f"{name} = {value!r}: expected a whole number >= {low}")
+
+
+def _without_retired(flat: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """``flat`` less the retired fields (:data:`RETIRED`) that hold their neutral value; ValueError
+    naming the field and why it went if one holds another."""
+    for name, (neutral, why) in RETIRED.items():
+        if name in flat and flat[name] != neutral:
+            raise ValueError(f"{where} {name} = {flat[name]!r}: {why} (only {neutral!r}, which does nothing, "
+                             "is still read)")  # fmt: skip
+    return {k: v for k, v in flat.items() if k not in RETIRED}
 
 
 def _owners() -> dict[str, type]:
@@ -310,6 +325,7 @@ class LearnerConfig:
     def from_dict(cls, flat: Mapping[str, Any]) -> LearnerConfig:
         """A config from flat ``{field: value}`` (a run record's); missing fields take their defaults."""
         owners = _owners()
+        flat = _without_retired(flat, "learner setting")
         unknown = sorted(set(flat) - set(owners))
         if unknown:
             raise ValueError(
@@ -346,6 +362,7 @@ def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, 
     are set elsewhere. Raises ValueError naming the field and what it accepts."""
     defaults = {k: v for k, v in LearnerConfig.field_defaults().items() if k not in exclude}
     out = {}
+    changes = _without_retired(changes, f"{where}:")
     for key, value in changes.items():
         if key not in defaults:
             raise ValueError(f"{where}: unknown learner setting {key!r}; accepted: {', '.join(defaults)}")

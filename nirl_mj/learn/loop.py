@@ -26,7 +26,6 @@ target: the ceiling of the inner loop) and ``"constant"`` (what surviving alone 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ import torch
 
 from nirl_mj.data.outcomes import outcome_rates
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, stack_pairs
+from nirl_mj.data.transitions import Transitions
 from nirl_mj.learn import network, sarsa
 from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
@@ -98,82 +98,6 @@ def greedy_policy(net: network.QNetwork, inputs: NetworkInputs) -> Callable[[np.
         return int(network.greedy_actions(q)[0])
 
     return policy
-
-
-@dataclass
-class Transitions:
-    """SARSA transitions of the learner's own trajectories, one row each.
-
-    ``next_action`` is -1 where the next action is the greedy one (a timeout's
-    last step); ``terminal`` rows do not bootstrap (their ``next_phi`` is the episode's end
-    s_T); ``terminal_value`` is the outcome reading's value of that end (0 unless built with an
-    arrival value: ``learn/terminal.py``);
-    ``progress`` is the travel towards the target in units of one decision's
-    travel (only the ``progress`` control reads it); ``remaining`` counts the pairs from this
-    row to the end of its trajectory, this one included (n-step targets stop there).
-    """
-
-    phi: np.ndarray
-    action: np.ndarray
-    next_phi: np.ndarray
-    next_action: np.ndarray
-    terminal: np.ndarray
-    terminal_value: np.ndarray
-    progress: np.ndarray
-    remaining: np.ndarray
-
-    @classmethod
-    def empty(cls) -> Transitions:
-        return cls(
-            np.zeros((0, 16)), np.zeros(0, int), np.zeros((0, 16)), np.zeros(0, int), np.zeros(0, bool),
-            np.zeros(0), np.zeros(0), np.zeros(0, int),
-        )  # fmt: skip
-
-    @classmethod
-    def of(
-        cls, trajectories: list[Trajectory], arrival_value: float = 0.0, progress: bool = False
-    ) -> Transitions:
-        """The rows of ``trajectories``; an ``arrival_value`` other than 0 reads each episode's
-        outcome (the task's: an arrival ends worth it, any other end 0), and ``progress`` the
-        robot's poses and the task's target (the progress control's reward; else zeros)."""
-        parts = []
-        for t in trajectories:
-            n = len(t)
-            if n == 0:
-                continue
-            next_action = np.append(t.actions[1:], -1).astype(int)
-            terminal = np.zeros(n, bool)
-            value = np.zeros(n)
-            if t.outcome in TERMINAL_OUTCOMES:
-                terminal[-1] = True
-                if arrival_value:
-                    value[-1] = arrival_value if t.outcome == "target" else 0.0
-            travel = np.zeros(n)
-            if progress:
-                target = np.asarray(t.task["arena"]["target"], dtype=np.float64)
-                distance = np.hypot(*(t.poses[:, :2] - target).T)
-                per_step = t.task["control"]["speed"] * t.task["control"]["decision_period"]
-                travel = (distance[:-1] - distance[1:]) / per_step
-            parts.append(
-                cls(
-                    t.features[:-1],
-                    t.actions.astype(int),
-                    t.features[1:],
-                    next_action,
-                    terminal,
-                    value,
-                    travel,
-                    np.arange(n, 0, -1),
-                )
-            )
-        return cls.concat(parts) if parts else cls.empty()
-
-    @classmethod
-    def concat(cls, parts: list[Transitions]) -> Transitions:
-        return cls(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(cls)))
-
-    def __len__(self) -> int:
-        return len(self.action)
 
 
 @dataclass
@@ -327,7 +251,7 @@ class IrlLoop:
         self.replay = ([*self.replay, fresh])[-max(c.replay_episodes, 1) :]
         cost = self._fit(Transitions.concat(self.replay))
         after = network.get_weights(self.net)
-        kept, policy_net = self._kept_policy(after)
+        kept, policy_net = after, self.net
 
         greedy = network.greedy_actions(network.q_values(policy_net, self.demo_inputs))
         demo_acc = float(np.mean(greedy == self.demo_actions))
@@ -374,20 +298,6 @@ class IrlLoop:
             return float(self.iteration)
         return validation if validation is not None else -1.0
 
-    def _kept_policy(self, after: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], network.QNetwork]:
-        """The policy this iteration keeps, and a network holding it: the trained network itself, or
-        with ``weight_averaging`` = b > 0 the exponential average of the weights so far,
-        avg_i = b avg_(i-1) + (1 - b) W_i (Polyak averaging: the iterates' noise averages out; the
-        previous average is the last kept policy, so a checkpoint needs nothing more)."""
-        b = self.loop.weight_averaging
-        if b == 0.0:
-            return after, self.net
-        previous = self.kept[-1] if self.kept else after
-        kept = {k: b * previous[k] + (1.0 - b) * after[k] for k in after}
-        net = network.QNetwork(self.inputs.size, self.loop.hidden_units, seed=0)
-        network.set_weights(net, kept)
-        return kept, net
-
     @property
     def selected(self) -> int:
         """Index of the policy the configured rule picks (the first best)."""
@@ -410,7 +320,9 @@ class IrlLoop:
         state |= {f"net_{k}": v for k, v in network.get_weights(self.net).items()}
         for name in network.get_weights(self.net):
             state[f"kept_{name}"] = np.array([w[name] for w in self.kept]) if self.kept else np.zeros((0,))
-        state |= {f"replay_{f.name}": getattr(replay, f.name) for f in dataclasses.fields(Transitions)}
+        # the loop's rows are never absorbing (an end's value is learn/terminal.py's): that field is not
+        # saved, so checkpoints keep the form they had before the class was shared
+        state |= {f"replay_{k}": v for k, v in replay.arrays().items() if k != "absorbing"}
         if self.reward_step is not None:
             state |= {f"reward_step_{k}": v for k, v in self.reward_step.state().items()}
         return state
@@ -426,15 +338,14 @@ class IrlLoop:
         network.set_weights(self.net, {k: np.array(state[f"net_{k}"]) for k in names})
         n_kept = len(self.scores)
         self.kept = [{k: np.array(state[f"kept_{k}"][i]) for k in names} for i in range(n_kept)]
-        if "replay_remaining" not in state:  # checkpoints from before n-step targets: one-step rows
-            state = {**state, "replay_remaining": np.ones(len(state["replay_action"]), dtype=np.int64)}
-        replay = Transitions(*(np.array(state[f"replay_{f.name}"]) for f in dataclasses.fields(Transitions)))
+        prefix = "replay_"
+        replay = Transitions.from_arrays({k.removeprefix(prefix): v for k, v in state.items()
+                                          if k.startswith(prefix) and k != "replay_sizes"})  # fmt: skip
         if self.reward_step is not None:
             prefix = "reward_step_"
             own = {k.removeprefix(prefix): v for k, v in state.items() if k.startswith(prefix)}
             self.reward_step.load_state(own)
         self.replay, start = [], 0
         for size in state["replay_sizes"]:
-            self.replay.append(Transitions(*(getattr(replay, f.name)[start : start + size]
-                                             for f in dataclasses.fields(Transitions))))  # fmt: skip
+            self.replay.append(replay.take(slice(start, start + size)))
             start += size

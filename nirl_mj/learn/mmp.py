@@ -9,7 +9,7 @@ r_theta(s, a) = theta^T f(s, a) (eq. 2), in the units of f.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -207,20 +207,34 @@ def _blocks_objective(
     return value, grad
 
 
-def _projected_subgradient(
-    objective, theta0: np.ndarray, steps: int, step_size: float, decay: float
+def projected_subgradient(
+    objective: Callable[[np.ndarray], tuple[float, np.ndarray]],
+    theta0: np.ndarray,
+    steps: int,
+    step_size: float,
+    decay: float,
+    normalise: bool = False,
 ) -> tuple[np.ndarray, float]:
+    """Minimises ``objective(theta) -> (J, subgradient)`` s.t. ||theta||_2 <= 1, the one loop of
+    NIRL's max margin (eq. 13) and SCIRL's step 3.
+
+    theta_{k+1} = P(theta_k - sigma_k d_k), sigma_k = step_size / (1 + decay k), k = 0..steps-1,
+    P :func:`project_to_ball`; d_k the subgradient, or with ``normalise`` the subgradient over its
+    norm (a zero subgradient then stops: every margin is met). theta0 is projected first. Returns
+    the iterate with the lowest J seen, the first and last included (earliest on ties), and that J.
+    """
     theta = project_to_ball(theta0)
     best_theta, best_value = theta.copy(), np.inf
     for k in range(int(steps) + 1):
         value, grad = objective(theta)
         if value < best_value:
             best_theta, best_value = theta.copy(), value
-        if k == steps:
+        norm = float(np.linalg.norm(grad)) if normalise else 1.0
+        if k == steps or norm == 0.0:
             break
         sigma = step_size / (1.0 + decay * k)
         # theta <- theta - sigma_1 dJ/dtheta (section IV-B), then back into the ball ||theta||_2 <= 1
-        theta = project_to_ball(theta - sigma * grad)
+        theta = project_to_ball(theta - sigma * grad / norm)
     return best_theta, float(best_value)
 
 
@@ -242,7 +256,7 @@ def minimise_mmp(
     Returns the iterate with the lowest J seen, theta0's projection and the final
     iterate included (earliest on ties), and that J: the margin t^(i).
     """
-    return _projected_subgradient(
+    return projected_subgradient(
         lambda theta: mmp_objective(theta, expert, learner, loss, lam), theta0, steps, step_size, decay
     )
 
@@ -265,7 +279,7 @@ def minimise_mmp_blocks(
     else:
         per_state = _per_state(policies)
         objective = lambda theta: _per_state_policies_objective(theta, blocks, offset, loss, per_state, lam)  # noqa: E731
-    return _projected_subgradient(objective, theta0, steps, step_size, decay)
+    return projected_subgradient(objective, theta0, steps, step_size, decay)
 
 
 def structured_loss(expert_actions: np.ndarray, loss: float) -> np.ndarray:

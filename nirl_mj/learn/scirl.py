@@ -38,7 +38,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nirl_mj.learn.config import LoopConfig, ScirlConfig
-from nirl_mj.learn.mmp import discounted_suffix_sums, mmp_objective, project_to_ball, structured_loss
+from nirl_mj.learn.mmp import discounted_suffix_sums, mmp_objective, projected_subgradient, structured_loss
 
 __all__ = ["heuristic_expectations", "minimise_scirl", "ScirlStep"]
 
@@ -69,18 +69,14 @@ def minimise_scirl(
     ||theta||_2 <= 1, k = 0..steps-1 (a zero subgradient stops: every margin is met). Returns the
     iterate with the lowest J (earliest on ties), theta_0 and the last iterate included.
     """
-    theta = np.zeros(mu_all.shape[-1])
-    best_theta, best_j = theta, np.inf
-    for k in range(int(steps) + 1):
-        # J(theta) and its subgradient: the structured hinge of eq. 13 with the expert's scores
-        j, grad = mmp_objective(theta, mu_taken, mu_all, loss, 0.0)
-        if j < best_j:
-            best_theta, best_j = theta.copy(), j
-        norm = float(np.linalg.norm(grad))
-        if k == steps or norm == 0.0:
-            break
-        theta = project_to_ball(theta - step_size / (k + 1) * grad / norm)
-    return best_theta, float(best_j)
+    return projected_subgradient(
+        lambda theta: mmp_objective(theta, mu_taken, mu_all, loss, 0.0),
+        np.zeros(mu_all.shape[-1]),
+        steps,
+        step_size,
+        decay=1.0,
+        normalise=True,
+    )
 
 
 class ScirlStep:
