@@ -98,7 +98,7 @@ def test_rl_methods_are_validated_in_experiment_files():
             "method": {"DQN": {"kind": "rl", "algo": "dqn", "steps": 100}}}  # fmt: skip
     experiment = from_dict(data)
     assert [(m.kind, m.algo, m.steps) for m in experiment.methods] == [
-        ("rl", "ppo", 50_000),
+        ("rl", "ppo", 100_000),
         ("rl", "dqn", 100),
     ]
     with pytest.raises(ExperimentError, match="accepted: ppo, dqn, gail, airl"):
@@ -158,18 +158,22 @@ def test_every_checkpoint_is_scored_on_the_demonstrations_and_the_best_kept(tmp_
     scores = record["scores"]
     assert [s["steps"] for s in scores] == [1024, 2048, 3072, 4096]
     best = max(range(len(scores)), key=lambda i: (scores[i]["score"], i))  # the later one on a tie
-    assert record["selected"] == scores[best]
+    assert record["selected"] == {**scores[best], "file": f"selected-{scores[best]['steps']}.zip"}
     assert record["config"]["selection"] == "demo_balanced" and record["config"]["n_steps"] == 512
     assert "task_success_selection" not in record["reads"]  # GAIL chooses on what it reads anyway
     # The files are the checkpoints the record names: each scores again what was recorded.
     trajectories = load_dataset(demos)
-    for name, expected in (("selected.zip", scores[best]["score"]), ("model.zip", scores[-1]["score"])):
+    assert sorted(p.name for p in run.glob("selected*")) == [record["selected"]["file"]]  # older ones removed
+    for name, expected in (
+        (record["selected"]["file"], scores[best]["score"]),
+        ("model.zip", scores[-1]["score"]),
+    ):
         model = sb3.PPO.load(run / name, device="cpu")
         assert _demo_scorer(model, trajectories)() == expected
     phi = np.random.default_rng(1).integers(0, 3, (20, 16)).astype(np.float32)
     chosen = [load_rl_policy(run, sampled=False, policy=p)[0] for p in ("selected", "last")]
     if best != len(scores) - 1:  # two different checkpoints may still agree on these states
-        model_files = [(run / n).read_bytes() for n in ("selected.zip", "model.zip")]
+        model_files = [(run / n).read_bytes() for n in (record["selected"]["file"], "model.zip")]
         assert model_files[0] != model_files[1]
     assert all(0 <= chosen[0](p) < 6 for p in phi)
 
@@ -190,7 +194,7 @@ def test_vectorised_training_draws_every_arena_once_and_scores_its_own_episodes(
     assert len(set(seeds)) == len(seeds) > 2 * envs  # each environment's first arena, twice, and more
     for s in record["scores"]:
         assert 0 < s["episodes"] <= SUCCESS_WINDOW and 0.0 <= s["score"] <= 1.0
-    assert record["selected"] in record["scores"]
+    assert {k: v for k, v in record["selected"].items() if k != "file"} in record["scores"]
 
 
 def test_a_legacy_run_records_no_selection_and_loads_its_last_checkpoint(tmp_path):
@@ -201,12 +205,14 @@ def test_a_legacy_run_records_no_selection_and_loads_its_last_checkpoint(tmp_pat
     record = train_rl(tmp_path / "run", OPEN, "ppo", 1024, seed=0, selection="last")
     assert record["config"] == {"algo": "ppo", **SETTINGS["ppo"]}  # as runs recorded before selection
     assert "selected" not in record and "scores" not in record
-    assert not (tmp_path / "run" / "selected.zip").exists()
+    assert not list((tmp_path / "run").glob("selected*"))
     load_rl_policy(tmp_path / "run")  # the last checkpoint
     with pytest.raises(ValueError, match="demo_balanced reads demonstrations; ppo has none"):
         train_rl(tmp_path / "other", OPEN, "ppo", 1024, selection="demo_balanced")
     with pytest.raises(ValueError, match="must divide PPO's rollout"):
-        train_rl(tmp_path / "other", OPEN, "ppo", 1024, envs=3)
+        train_rl(tmp_path / "other", OPEN, "ppo", 1024, envs=5)
+    with pytest.raises(ValueError, match="envs = 16: must be >= 1 and divide the 5000 decisions"):
+        train_rl(tmp_path / "other", OPEN, "ppo", 1024, envs=16)
 
 
 def test_the_table_rows_of_ppo_gail_and_airl_select_and_say_what_they_read():
@@ -241,11 +247,46 @@ def test_an_experiment_may_tune_ppo_within_its_known_settings():
     assert config["learning_rate"] == 1e-4 and config["n_epochs"] == 5
     assert from_dict(data).identity()["methods"][0]["settings"] == {"learning_rate": 1e-4, "n_epochs": 5}
     # untuned methods keep the identity they had before the key existed
-    assert (
-        "settings" not in from_dict({"kind": "compare", "methods": ["PPO-reward"]}).identity()["methods"][0]
-    )
+    assert "settings" not in from_dict({"kind": "compare", "methods": ["GAIL"]}).identity()["methods"][0]
     for bad, message in (({"lr": 1.0}, "settings.lr: accepted: learning_rate"),
-                         ({"n_epochs": 2.5}, "settings.n_epochs = 2.5: expected a positive int"),
-                         ({"learning_rate": -1.0}, "expected a positive float")):  # fmt: skip
+                         ({"n_epochs": 2.5}, "settings.n_epochs = 2.5: expected an int >= 1"),
+                         ({"learning_rate": -1.0}, r"expected a float in \(0.0, inf\)"),
+                         ({"gamma": 1.5}, r"expected a float in \(0.0, 1.0\]"),
+                         ({"batch_size": 1}, "expected an int >= 2")):  # fmt: skip
         with pytest.raises(ExperimentError, match=message):
             from_dict({**data, "method": {"P": {"kind": "rl", "settings": bad}}})
+
+
+def test_the_last_checkpoint_holds_the_model_after_its_last_update(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments.rl import train_rl
+
+    # 1,024 decisions are one PPO rollout; a checkpoint due at that step comes before PPO's update,
+    # so the run must save again after it: the same model whatever the checkpoint spacing
+    for every in (1024, 2048):
+        train_rl(tmp_path / str(every), OPEN, "ppo", 1024, seed=0, checkpoint_every=every, selection="last")
+    params = [
+        sb3.PPO.load(tmp_path / str(e) / "model.zip", device="cpu").policy.state_dict() for e in (1024, 2048)
+    ]
+    assert all(np.array_equal(params[0][k].numpy(), params[1][k].numpy()) for k in params[0])
+
+
+def test_a_resume_scores_on_with_its_success_window_and_a_legacy_run_resumes_from_the_command_line(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments.rl import train_rl
+
+    run = tmp_path / "run"
+    first = train_rl(run, OPEN, "ppo", 1024, seed=1, checkpoint_every=512, envs=4)
+    window = first["recent_outcomes"]
+    assert window and len(window) <= 30
+    record = train_rl(run, OPEN, "ppo", 2048, seed=1, checkpoint_every=512, envs=4, resume=True)
+    after = [s for s in record["scores"] if s["steps"] > first["steps_done"]]
+    assert after and after[0]["episodes"] >= len(window)  # the saved window, then the new episodes
+    # a run recorded before selection existed resumes with its own settings when none are given
+    legacy = tmp_path / "legacy"
+    train_rl(legacy, OPEN, "ppo", 1024, seed=0, selection="last")
+    args = ["rl", "--algo", "ppo", "--steps", "2048", "--out", str(legacy), "--resume", "--quiet"]
+    assert main(args) == 0
+    assert "selection" not in json.loads((legacy / "run.json").read_text())["config"]

@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import json
 import os
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -268,7 +269,8 @@ def cmd_rl(args: argparse.Namespace) -> int:
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
     out = RunDir(args.out)
     if args.overwrite and not args.resume and not out.is_empty():
-        extra = out.names() - {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
+        ours = {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
+        extra = {n for n in out.names() - ours if not re.fullmatch(r"selected-\d+\.zip", n)}
         if not out.is_run or out.read_record().get("kind") != "rl" or extra:
             raise RunError(f"{out} is not an RL run directory; --overwrite replaces only an RL run")
         shutil.rmtree(out.path)

@@ -172,9 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=_positive_int, default=50_000, help="decisions to train (default: 50000)")
     p.add_argument("--selection", choices=SELECTIONS, default=None,
                    help="how the checkpoint handed to tests is chosen (default: demo_balanced for gail and "
-                        "airl, training_success for ppo and dqn; last: none)")
-    p.add_argument("--envs", type=_positive_int, default=1,
-                   help="environments sharing each rollout, stepped in turn (default: 1)")
+                        "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
+    p.add_argument("--envs", type=_positive_int, default=None,
+                   help="environments sharing each rollout, in turn (default: 1; a resume: the run's)")
     p.add_argument("--seed", type=int, default=0, help="training seed (network, arenas)")
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")

@@ -37,6 +37,7 @@ from nirl_mj.data.atomic import AtomicFile, leftover_temporaries, write_npz, wri
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
 MODEL_FILE, SELECTED_MODEL_FILE = "model.zip", "selected.zip"
+SELECTED_MODEL_PATTERN = "selected-{steps}.zip"  # an RL run's selected checkpoint, named in its record
 POLICIES = ("selected", "last")
 RECORD_KEYS = ("task", "config", "seed", "demos", "demo_seeds", "validation_seeds")
 """What every run record holds from its start."""

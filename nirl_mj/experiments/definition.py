@@ -33,7 +33,7 @@ from typing import Any
 from nirl_mj.experiments.rl import ALGOS, LEGACY, SELECTIONS, run_config
 from nirl_mj.experiments.seeds import TEST_DOMAINS
 from nirl_mj.experts import EXPERT_KINDS
-from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes
+from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes, without_retired
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.spec import SpecError
 
@@ -128,8 +128,9 @@ BUILTIN_METHODS = {
         envs=RL_ENVS,
         settings={"learning_rate": 1e-4},
     ),  # fmt: skip
-    # adversarial imitation: PPO (the RL reference's settings and budget) on a discriminator's reward,
-    # its checkpoint chosen by the paper's rule (balanced accuracy on the demonstrations)
+    # adversarial imitation: PPO (SB3's settings but 1024-decision rollouts, 50,000 decisions) on a
+    # discriminator's reward, its checkpoint chosen by the paper's rule (balanced accuracy on the
+    # demonstrations)
     "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
     "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
@@ -414,8 +415,9 @@ def _method_identity(method: MethodSpec) -> dict:
 def _learner_changes(table: dict, where: str) -> dict:
     """Learner config changes (flat field names), each checked against the field's default type."""
     exclude = ("variant", "method")
-    _known(table, [k for k in LearnerConfig.field_defaults() if k not in exclude], where, "")
     try:
+        table = without_retired(table, f"{where}:")  # a retired setting at its neutral value is dropped
+        _known(table, [k for k in LearnerConfig.field_defaults() if k not in exclude], where, "")
         return checked_changes(table, where, exclude)
     except ValueError as exc:
         raise ExperimentError(str(exc)) from None

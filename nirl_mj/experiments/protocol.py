@@ -74,7 +74,10 @@ def resolved_learners(saved: dict) -> dict[str, dict]:
     from nirl_mj.learn.config import LearnerConfig
 
     learners = saved.get("learners", {})
-    return {name: LearnerConfig.from_record(flat).to_dict() for name, flat in learners.items()}
+    try:
+        return {name: LearnerConfig.from_record(flat).to_dict() for name, flat in learners.items()}
+    except (TypeError, ValueError) as exc:
+        raise ExperimentError(f"the saved experiment's learners cannot be read by this version: {exc}") from None  # noqa: E501
 
 
 def grows(saved: dict, identity: dict, runs: int) -> bool:

@@ -16,10 +16,14 @@ training episode draws the arena of ``seeds.domain_seed("train", seed, k)`` for 
 tests skip them like a NIRL run's.
 
 The run directory (``nirl_mj.data.rundir``) holds ``run.json`` (``"kind": "rl"``, the algorithm,
-its settings, the task, seed and arenas), ``model.zip`` (Stable-Baselines3's file, rewritten
-atomically at every checkpoint) and ``eval.json``. A resume continues from the last checkpoint
-with the arenas that follow; it is not bit-identical to an uninterrupted run (the episode in
-progress and PPO's rollout buffer are not saved).
+its settings, the task, seed and arenas, every checkpoint's selection score), ``model.zip``
+(Stable-Baselines3's file, rewritten atomically at every checkpoint), the selected checkpoint
+``selected-<decisions>.zip`` that the record names (:data:`SELECTIONS`), GAIL's and AIRL's
+``discriminator.npz`` (the last checkpoint's: AIRL's reward maps show it, not the selected
+checkpoint's) and ``eval.json``. A resume continues from the last checkpoint with the arenas that
+follow, and the success window of ``training_success`` as it was; it is not bit-identical to an
+uninterrupted run (the episode in progress and PPO's rollout buffer are not saved). A run
+recorded before selection existed (no ``selection`` in its config) resumes as it was trained.
 
 Needs the optional extra ``nirl-mj[gym]``; imported only by the commands that train or load an
 RL run, so the core install does not need it.
@@ -34,7 +38,15 @@ from typing import Any
 
 import numpy as np
 
-from nirl_mj.data.rundir import MODEL_FILE, POLICIES, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
+from nirl_mj.data.rundir import (
+    MODEL_FILE,
+    POLICIES,
+    RUN_FILE,
+    SELECTED_MODEL_FILE,
+    SELECTED_MODEL_PATTERN,
+    RunDir,
+    RunError,
+)
 from nirl_mj.experiments.reads import rl_reads
 from nirl_mj.experiments.seeds import domain_seed
 from nirl_mj.sim import spec as specs
@@ -74,13 +86,18 @@ neither key, so it still resumes and its cells keep their identity."""
 
 
 def default_selection(algo: str) -> str:
-    """The selection an experiment's ``algo`` row uses unless told: each reads only what it reads."""
+    """The selection ``nirl-mj rl --algo ALGO`` uses unless told (each reads only what the algorithm
+    reads anyway); an experiment's row uses its own (``definition.MethodSpec.selection``)."""
     return "demo_balanced" if algo in ADVERSARIAL else "training_success"
 
 
-TUNABLE = {"learning_rate": float, "n_epochs": int, "batch_size": int, "ent_coef": float, "clip_range": float,
-           "gae_lambda": float, "gamma": float}  # fmt: skip
-"""PPO's settings an experiment may change (``[method.NAME] settings = {...}``), with their types."""
+TUNABLE = {"learning_rate": (float, 0.0, None), "n_epochs": (int, 1, None), "batch_size": (int, 2, None),
+           "ent_coef": (float, None, None), "clip_range": (float, 0.0, None), "gae_lambda": (float, 0.0, 1.0),
+           "gamma": (float, 0.0, 1.0)}  # fmt: skip
+"""PPO's settings an experiment may change (``[method.NAME] settings = {...}``): (type, lowest, highest);
+a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0."""
+CHECKPOINT_EVERY = 5_000
+"""Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
 
 def tuned(algo: str, changes: dict) -> dict:
@@ -90,13 +107,21 @@ def tuned(algo: str, changes: dict) -> dict:
         raise ValueError("settings apply to PPO and its adversarial learners, not dqn")
     out = {}
     for key, value in changes.items():
-        kind = TUNABLE.get(key)
-        if kind is None:
+        if key not in TUNABLE:
             raise ValueError(f"settings.{key}: accepted: {', '.join(TUNABLE)}")
+        kind, low, high = TUNABLE[key]
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
-        if type(value) is not kind or not value > 0:
-            raise ValueError(f"settings.{key} = {value!r}: expected a positive {kind.__name__}")
+        ok = type(value) is kind and np.isfinite(value)
+        if key == "ent_coef":
+            ok, wanted = ok and value >= 0, "a float >= 0"
+        elif kind is int:
+            ok, wanted = ok and value >= low, f"an int >= {low}"
+        else:
+            ok = ok and value > low and (high is None or value <= high)
+            wanted = f"a float in ({low}, {'inf)' if high is None else f'{high}]'}"
+        if not ok:
+            raise ValueError(f"settings.{key} = {value!r}: expected {wanted}")
         out[key] = value
     return out
 
@@ -110,8 +135,9 @@ def run_config(algo: str, selection: str, envs: int, changes: dict | None = None
     if selection == "demo_balanced" and algo not in ADVERSARIAL:
         raise ValueError(f"selection demo_balanced reads demonstrations; {algo} has none: use "
                          "training_success or last")  # fmt: skip
-    if envs < 1:
-        raise ValueError(f"envs = {envs}: must be >= 1")
+    if envs < 1 or CHECKPOINT_EVERY % envs:
+        raise ValueError(f"envs = {envs}: must be >= 1 and divide the {CHECKPOINT_EVERY} decisions between "
+                         "checkpoints")  # fmt: skip
     config = {"algo": algo, **SETTINGS[algo], **tuned(algo, changes or {})}
     if (selection, envs) == (LEGACY["selection"], LEGACY["envs"]):
         return config
@@ -188,18 +214,18 @@ def train_rl(
     steps: int = 50_000,
     seed: int = 0,
     resume: bool = False,
-    checkpoint_every: int = 5_000,
+    checkpoint_every: int = CHECKPOINT_EVERY,
     on_steps: Callable[[int, dict], None] | None = None,
     demos: str | os.PathLike | None = None,
     selection: str | None = None,
-    envs: int = 1,
+    envs: int | None = None,
     changes: dict | None = None,
 ) -> dict:
     """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
     GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate. ``selection``
     (:data:`SELECTIONS`; default :func:`default_selection`) scores every checkpoint and keeps the
-    best in ``selected.zip``; ``envs`` environments share each rollout; ``changes`` tune PPO
-    (:func:`tuned`).
+    best (``selected-<decisions>.zip``); ``envs`` environments share each rollout; ``changes`` tune
+    PPO (:func:`tuned`). A resume given no ``selection`` (or ``envs`` None) takes the run's own.
 
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
     100 training episodes)."""
@@ -208,7 +234,12 @@ def train_rl(
         raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
-    selection = selection or default_selection(algo)
+    run = RunDir(run_dir)
+    if resume and run.is_run and (selection is None or envs is None):
+        saved_config = run.read_record().get("config", {})
+        selection = selection or saved_config.get("selection", LEGACY["selection"])
+        envs = envs or saved_config.get("envs", LEGACY["envs"])
+    selection, envs = selection or default_selection(algo), envs or LEGACY["envs"]
     config = run_config(algo, selection, envs, changes)
     if checkpoint_every % envs:
         raise ValueError(f"checkpoint_every = {checkpoint_every}: must be a multiple of envs = {envs}")
@@ -222,7 +253,6 @@ def train_rl(
 
         trajectories = load_dataset(demos)
         config["discriminator"] = adv.variant_of(algo).settings()
-    run = RunDir(run_dir)
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}), "validation_seeds": [],
@@ -250,7 +280,7 @@ def train_rl(
     callbacks = []
     if adversarial:
         expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
-        reward = adv.AdversarialReward(algo, SETTINGS[algo]["gamma"], expert, seed)
+        reward = adv.AdversarialReward(algo, config["gamma"], expert, seed)
         if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
             reward.load_state(adv.read_discriminator(run))
         venv = adv.reward_wrapper(venv, reward)
@@ -278,34 +308,49 @@ def train_rl(
             score = demo_score()
         elif selection == "training_success" and outcomes:
             score = float(np.mean(outcomes))
+        replaced = None
         if score is not None:
-            record["scores"] = [*record.get("scores", []), {"steps": steps_now, "score": score,
-                                                             "episodes": len(outcomes)}]  # fmt: skip
+            entry = {"steps": steps_now, "score": score, "episodes": len(outcomes)}
+            record["scores"] = [*record.get("scores", []), entry]
             if best is None or (score >= best["score"] and steps_now > best["steps"]):
-                run.write_model(model.save, SELECTED_MODEL_FILE)
-                record["selected"] = record["scores"][-1]
+                # a file per selected checkpoint, named in the record: a kill between the two writes
+                # leaves the record naming a file that holds what it says
+                name = SELECTED_MODEL_PATTERN.format(steps=steps_now)
+                run.write_model(model.save, name)
+                record["selected"], replaced = {**entry, "file": name}, (best or {}).get("file")
+        if selection == "training_success":
+            record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
         record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
         run.write_record(record)
+        if replaced:
+            run.file(replaced).unlink(missing_ok=True)
 
-    progress = _Progress(checkpoint, checkpoint_every, on_steps)
+    progress = _Progress(checkpoint, checkpoint_every, on_steps, record.get("recent_outcomes", []))
     callbacks.append(progress)
     model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
-    if int(model.num_timesteps) != record["steps_done"]:
-        progress.checkpoint_now()
+    progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
     venv.close()
     return record
 
 
-def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps) -> Any:
+def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps, outcomes: list[bool]) -> Any:
     """A Stable-Baselines3 callback: progress after every step, a checkpoint every ``every`` steps
-    (handed the outcomes of the last training episodes, at most :data:`SUCCESS_WINDOW`; a resume
-    starts counting anew)."""
+    (handed the outcomes of the last training episodes, at most :data:`SUCCESS_WINDOW`, starting from
+    ``outcomes``), but not at the last step of learning: the model is updated after it, and the
+    caller checkpoints then."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Progress(BaseCallback):
         def __init__(self) -> None:
             super().__init__()
-            self.outcomes: list[bool] = []
+            self.outcomes: list[bool] = [bool(o) for o in outcomes]
+
+        def last_step(self) -> bool:
+            """Whether learning ends after this step: the target reached and, for PPO, its rollout full."""
+            if self.num_timesteps < self.model._total_timesteps:
+                return False
+            n, rollout = self.locals.get("n_steps"), self.locals.get("n_rollout_steps")
+            return n is None or rollout is None or n == rollout - 1
 
         def checkpoint_now(self) -> None:
             checkpoint(self.outcomes[-SUCCESS_WINDOW:])
@@ -318,7 +363,7 @@ def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps) ->
                 recent = self.outcomes[-100:]
                 on_steps(self.training_env.num_envs, {"episodes": len(self.outcomes),
                          "success": sum(recent) / len(recent) if recent else float("nan")})  # fmt: skip
-            if self.num_timesteps % every == 0:
+            if self.num_timesteps % every == 0 and not self.last_step():
                 self.checkpoint_now()
             return True
 
@@ -369,7 +414,9 @@ def load_rl_policy(
         raise RunError(f"{run} is not an RL run ({RUN_FILE} has no kind = rl)")
     if policy not in POLICIES:
         raise ValueError(f"policy {policy!r}: accepted: {', '.join(POLICIES)}")
-    chosen = SELECTED_MODEL_FILE if policy == "selected" and "selected" in record else MODEL_FILE
+    chosen = MODEL_FILE
+    if policy == "selected" and "selected" in record:  # runs before 2026-11-26's review: selected.zip
+        chosen = record["selected"].get("file", SELECTED_MODEL_FILE)
     model = _algorithm(record["algo"]).load(run.model_file(chosen), device="cpu")
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"

@@ -40,8 +40,8 @@ class ArenaSeeds(gymnasium.Wrapper):
         replace_given: bool = False,
     ) -> None:
         super().__init__(env)
-        if (arena_seed is None) == (stream is None):
-            raise ValueError("ArenaSeeds takes an arena_seed function or a shared stream, one of the two")
+        if (arena_seed is None) == (stream is None) or (stream is not None and start):
+            raise ValueError("ArenaSeeds takes an arena_seed function (and a start) or a shared stream")
         self.stream = stream if stream is not None else ArenaStream(arena_seed, start)
         self.replace_given = replace_given
 

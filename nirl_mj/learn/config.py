@@ -280,7 +280,7 @@ def _counts(config: Any, **minimums: int) -> None:
             raise ValueError(f"{name} = {value!r}: expected a whole number >= {low}")
 
 
-def _without_retired(flat: Mapping[str, Any], where: str) -> dict[str, Any]:
+def without_retired(flat: Mapping[str, Any], where: str) -> dict[str, Any]:
     """``flat`` less the retired fields (:data:`RETIRED`) that hold their neutral value; ValueError
     naming the field and why it went if one holds another."""
     for name, (neutral, why) in RETIRED.items():
@@ -325,7 +325,7 @@ class LearnerConfig:
     def from_dict(cls, flat: Mapping[str, Any]) -> LearnerConfig:
         """A config from flat ``{field: value}`` (a run record's); missing fields take their defaults."""
         owners = _owners()
-        flat = _without_retired(flat, "learner setting")
+        flat = without_retired(flat, "learner setting")
         unknown = sorted(set(flat) - set(owners))
         if unknown:
             raise ValueError(
@@ -362,7 +362,7 @@ def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, 
     are set elsewhere. Raises ValueError naming the field and what it accepts."""
     defaults = {k: v for k, v in LearnerConfig.field_defaults().items() if k not in exclude}
     out = {}
-    changes = _without_retired(changes, f"{where}:")
+    changes = without_retired(changes, f"{where}:")
     for key, value in changes.items():
         if key not in defaults:
             raise ValueError(f"{where}: unknown learner setting {key!r}; accepted: {', '.join(defaults)}")
