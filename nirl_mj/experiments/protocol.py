@@ -77,7 +77,9 @@ def resolved_learners(saved: dict) -> dict[str, dict]:
     try:
         return {name: LearnerConfig.from_record(flat).to_dict() for name, flat in learners.items()}
     except (TypeError, ValueError) as exc:
-        raise ExperimentError(f"the saved experiment's learners cannot be read by this version: {exc}") from None  # noqa: E501
+        raise ExperimentError(
+            f"the saved experiment's learners cannot be read by this version: {exc}"
+        ) from None
 
 
 def grows(saved: dict, identity: dict, runs: int) -> bool:
