@@ -97,12 +97,8 @@ ALL_VARIANTS = ["gail", "gail-absorbing", "airl", "airl-absorbing", "gail-norm",
 @pytest.mark.parametrize("algo", ALL_VARIANTS)
 def test_a_saved_discriminator_loads_with_its_absorbing_state_or_without(tmp_path, algo):
     from nirl_mj.data.rundir import RunDir, RunError
-    from nirl_mj.experiments.adversarial import (
-        AdversarialReward,
-        Transitions,
-        load_discriminator,
-        save_discriminator,
-    )
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward, load_discriminator, save_discriminator
 
     demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward(algo, 0.99, demos, seed=3)
@@ -144,7 +140,8 @@ def test_the_adversarial_algorithms_are_the_same_list_everywhere():
 def test_the_discriminator_takes_minibatch_epochs_or_two_full_batch_steps(algo, steps):
     """600 learner pairs: 4 epochs of 3 minibatches (256, 256, 88) by default; with "-d2" two Adam
     steps, each on all 600 pairs against 600 demonstrated ones (the imitation library's default)."""
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward
 
     rng = np.random.default_rng(0)
 
@@ -194,7 +191,8 @@ def test_gradient_penalty_by_hand():
 @pytest.mark.parametrize("algo", ["gail-gp", "airl-gp"])
 def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
     """The penalty of a real discriminator against central finite differences of its logits."""
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward
 
     rng = np.random.default_rng(1)
     x, x_next = rng.random((3, 16)).astype(np.float32), rng.random((3, 16)).astype(np.float32)
@@ -224,7 +222,8 @@ def test_the_penalty_is_r1_of_the_networks_own_gradient(algo):
 def test_the_penalty_flattens_the_discriminator_where_the_expert_is():
     """Trained on the same separable pairs, a penalised GAIL discriminator's logit varies far less
     around the expert's states than an unpenalised one's (the penalty is not a no-op)."""
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward
 
     rng = np.random.default_rng(0)
     a, x_next, terminal = np.zeros(256, int), np.zeros((256, 16)), np.zeros(256, bool)
@@ -327,7 +326,8 @@ def test_the_wrapper_replaces_the_task_reward_and_keeps_transitions():
     pytest.importorskip("stable_baselines3")  # the optional extra nirl-mj[gym]
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward, reward_wrapper
 
     demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail", 0.99, demos, seed=0)
@@ -352,7 +352,8 @@ def test_with_an_absorbing_state_a_terminal_step_earns_the_stay_there():
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward, reward_wrapper
 
     demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail-absorbing", 0.75, demos, seed=0)
@@ -376,7 +377,8 @@ def test_with_norm_each_reward_is_normalised_by_the_rewards_so_far_itself_includ
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from nirl_mj.experiments.adversarial import AdversarialReward, Transitions, reward_wrapper
+    from nirl_mj.data.transitions import Transitions
+    from nirl_mj.experiments.adversarial import AdversarialReward, reward_wrapper
 
     demos = Transitions.pairs(np.zeros((1, 16)), np.zeros(1, int), np.zeros((1, 16)), np.zeros(1, bool))
     reward = AdversarialReward("gail-norm", 0.99, demos, seed=0)

@@ -28,12 +28,8 @@ from stable_baselines3 import PPO
 
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import RunDir
-from nirl_mj.experiments.adversarial import (
-    AdversarialReward,
-    Transitions,
-    expert_transitions,
-    read_discriminator,
-)
+from nirl_mj.data.transitions import Transitions
+from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, read_discriminator
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.rl import load_rl_policy, scaled
 from nirl_mj.experiments.seeds import domain_seeds
