@@ -15,6 +15,7 @@ import pytest
 from nirl_mj.cli import main
 from nirl_mj.experiments import protocol
 from nirl_mj.experiments.definition import (
+    AXIS_KEYS,
     BUILTIN_METHODS,
     DEMO_KEYS,
     KEYS,
@@ -236,11 +237,11 @@ def test_own_methods_change_the_learner():
 
 def test_every_experiment_key_is_documented_in_docs_experiments_md():
     text = (ROOT / "docs" / "EXPERIMENTS.md").read_text()
-    keys = {*KEYS["compare"], *KEYS["sweep"]}
+    keys = {*KEYS["compare"], *KEYS["sweep"], *KEYS["suite"]}
     for key in keys:
         assert f"| `{key}` |" in text, f"top-level key {key} is not documented in docs/EXPERIMENTS.md"
     for table, names in (("demos", DEMO_KEYS), ("method.NAME", METHOD_KEYS), ("paper.NAME", PAPER_KEYS),
-                         ("strip", STRIP_KEYS)):  # fmt: skip
+                         ("strip", STRIP_KEYS), ("axis", AXIS_KEYS)):  # fmt: skip
         for key in names:
             assert f"| `{table}.{key}` |" in text, f"{table}.{key} is not documented in docs/EXPERIMENTS.md"
     for name in BUILTIN_METHODS:

@@ -178,3 +178,18 @@ def test_empty():
 def test_prior_validation(dataset, prior, match):
     with pytest.raises(ValueError, match=match):
         map_pretreat(dataset, prior)
+
+
+def test_the_learner_trains_on_the_pretreated_demonstrations_when_asked(dataset):
+    from nirl_mj.learn.config import LearnerConfig
+    from nirl_mj.learn.loop import IrlLoop
+
+    relabelled, report = map_pretreat(dataset)
+    assert report.pairs_changed > 0  # the dataset has ambiguous states: a test that can fail
+    on = IrlLoop(LearnerConfig.preset("default", pretreatment="map"), dataset, seed=0)
+    off = IrlLoop(LearnerConfig.preset("default"), dataset, seed=0)
+    assert on.demo_actions.tolist() == stack_pairs(relabelled)[1].tolist()
+    assert off.demo_actions.tolist() == stack_pairs(dataset)[1].tolist()
+    assert LearnerConfig.from_record({}).loop.pretreatment == "none"  # records before it: as recorded
+    with pytest.raises(ValueError, match="unknown pretreatment 'mle'; accepted: none, map"):
+        LearnerConfig.preset("default", pretreatment="mle")

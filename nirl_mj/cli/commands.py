@@ -17,7 +17,7 @@ from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
-from nirl_mj.experiments import compare, sweep
+from nirl_mj.experiments import compare, suite, sweep
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
@@ -396,11 +396,12 @@ def cmd_render(args: argparse.Namespace) -> int:
 _EXPERIMENTS = {  # command -> (run, Markdown table, --json line)
     "compare": (compare.run_compare, lambda summary, _: compare.markdown_table(summary), compare.json_line),
     "sweep": (sweep.run_sweep, sweep.markdown_table, sweep.json_line),
+    "suite": (suite.run_suite, suite.markdown_table, suite.json_line),
 }
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    """``compare`` and ``sweep``: run (or resume) the experiment with a progress bar over its cells."""
+    """``compare``, ``sweep`` and ``suite``: run (or resume) the experiment, a progress bar over its cells."""
     run, table, json_line = _EXPERIMENTS[args.command]
     experiment = load_experiment(args.task, args.quick, args.command)
     if args.runs is not None:

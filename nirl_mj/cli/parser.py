@@ -63,7 +63,7 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
 
 
 def _experiment_command(sub, name: str, default: str, help: str) -> None:
-    """The options of ``compare`` and ``sweep`` (docs/EXPERIMENTS.md)."""
+    """The options of ``compare``, ``sweep`` and ``suite`` (docs/EXPERIMENTS.md)."""
     p = _command(sub, name, c.cmd_experiment, help, "json", "quiet", task=None)
     p.add_argument("--task", default=default, metavar="SPEC",
                    help=f"experiment file or its name under tasks/ (default: {default})")  # fmt: skip
@@ -91,13 +91,14 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         help="run nothing: write the tables from the cells finished so "
         "far (a partial report of a long or interrupted experiment; safe while it runs)",
     )
+    if name in ("compare", "suite"):
+        p.add_argument("--only", default=None, metavar="NAMES",
+                       help="comma-separated methods: compute only their cells; the tables show the "
+                       "others' finished cells (not part of an experiment's identity)")  # fmt: skip
     if name == "compare":
         p.add_argument("--reuse", default=None, metavar="OLD",
                        help="first copy the cells an earlier output directory OLD finished as the same "
                        "computation (same method settings, demonstrations and test arenas)")  # fmt: skip
-        p.add_argument("--only", default=None, metavar="NAMES",
-                       help="comma-separated methods: compute only their cells; the table shows the "
-                       "others' finished cells (not part of an experiment's identity)")  # fmt: skip
 
 
 # fmt: off
@@ -221,6 +222,8 @@ def build_parser() -> argparse.ArgumentParser:
     _experiment_command(
         sub, "sweep", "tasks/fig6.toml", "Fig. 6: success against obstacles and speed (CSV and line plot)"
     )
+    _experiment_command(sub, "suite", "tasks/suites/demos.toml", "the comparison along an axis "
+                        "(demonstrations, demonstrator, obstacles, speed, moving, family): tidy CSV, curves")
 
     p = _command(sub, "export", c.cmd_export, "write a dataset as a Minari dataset (replayed in the "
                  "environment: full observations, rewards, episode ends; needs nirl-mj[gym])", "quiet",

@@ -4,9 +4,17 @@
 learner's per-iteration metrics, :func:`metrics_of` (an evaluation) and
 :func:`summarise` (``nirl-mj inspect``/``rollout``) all use it.
 
-SPL (success weighted by path length) = (1/N) sum_i S_i L_i / max(L_i, P_i),
-with P_i the path driven and L_i the straight-line distance from start to the
-target's rim: a lower bound of the shortest path, so this SPL errs low.
+SPL (success weighted by path length, Anderson et al. 2018) =
+(1/N) sum_i S_i L_i / max(L_i, P_i), with P_i the path driven and L_i the
+straight-line distance from start to the target's rim: a lower bound of the
+shortest path, so this SPL errs low.
+
+SCT (success weighted by completion time, Yokoyama et al. 2021) =
+(1/N) sum_i S_i C_i / max(C_i, T_i), with T_i the episode's duration (seconds,
+decisions times the decision period) and C_i = L_i / v the time of that
+straight line at the commanded speed v: a lower bound of the fastest
+completion. SPL does not see time spent turning or backing off on the spot;
+SCT does.
 """
 
 from __future__ import annotations
@@ -37,24 +45,46 @@ def outcome_rates(outcomes: Iterable[str]) -> dict[str, float]:
     return {key: counts[outcome] / n if n else 0.0 for outcome, key in RATE_KEYS.items()}
 
 
+def shortest_length(trajectory: Trajectory) -> float:
+    """L: the straight-line distance (metres) from the episode's start to the target's rim, a lower
+    bound of the shortest path (never below 1e-9)."""
+    start, target = trajectory.poses[0, :2], np.asarray(trajectory.task["arena"]["target"])
+    return max(float(np.hypot(*(target - start))) - trajectory.task["arena"]["target_radius"], 1e-9)
+
+
+def duration(trajectory: Trajectory) -> float:
+    """T: how long the episode lasted, seconds."""
+    return float(trajectory.times[-1] - trajectory.times[0])
+
+
 def spl(trajectories: Sequence[Trajectory]) -> float:
     """Success weighted by path length (module docstring), 0..1; needs one trajectory at least."""
     total = 0.0
     for t in trajectories:
         if t.success:
-            start, target = t.poses[0, :2], np.asarray(t.task["arena"]["target"])
-            shortest = max(float(np.hypot(*(target - start))) - t.task["arena"]["target_radius"], 1e-9)
+            shortest = shortest_length(t)
             total += shortest / max(shortest, path_length(t))
     return total / len(trajectories)
 
 
+def sct(trajectories: Sequence[Trajectory]) -> float:
+    """Success weighted by completion time (module docstring), 0..1; needs one trajectory at least."""
+    total = 0.0
+    for t in trajectories:
+        if t.success:
+            fastest = shortest_length(t) / t.speed
+            total += fastest / max(fastest, duration(t))
+    return total / len(trajectories)
+
+
 def metrics_of(trajectories: list[Trajectory]) -> dict:
-    """An evaluation's metrics: outcome rates, mean path length (metres), SPL and the
+    """An evaluation's metrics: outcome rates, mean path length (metres), SPL, SCT and the
     number of episodes (``tests``)."""
     return {
         **outcome_rates(t.outcome for t in trajectories),
         "mean_path_length": float(np.mean([path_length(t) for t in trajectories])),
         "spl": spl(trajectories),
+        "sct": sct(trajectories),
         "tests": len(trajectories),
     }
 

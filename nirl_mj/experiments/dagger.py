@@ -78,7 +78,7 @@ def train_dagger(
     behaviour cloning's ``settings`` (default: ``CloneSettings.of("default")``).
 
     ``on_round(round, labelled pairs)`` reports progress after each round."""
-    from nirl_mj.experts import make_expert
+    from nirl_mj.experiments.demos import ExpertConfig
     from nirl_mj.sim.episode import run_episode
     from nirl_mj.sim.task import make_env
 
@@ -88,7 +88,7 @@ def train_dagger(
     data_phi, data_actions = [phi], [np.asarray(actions, dtype=np.int64)]
     policy = clone_pairs(phi, actions, seed, settings, held_pairs)
     env = make_env(specs.replace(task, robot={"drive": config.drive}))
-    teacher = make_expert(expert)
+    teacher = ExpertConfig.named(expert, seed).build()
     arenas = domain_seeds("train", seed, config.rounds * config.episodes)
     for round_ in range(config.rounds):
         agent = LabellingAgent(policy, teacher)

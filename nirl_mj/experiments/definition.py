@@ -1,7 +1,8 @@
 """Experiment specifications: the only module that reads experiment files (``tasks/table1.toml``, ...).
 
 An experiment file is TOML. ``kind = "compare"`` (the paper's Table I protocol,
-``nirl-mj compare``) or ``kind = "sweep"`` (Fig. 6, ``nirl-mj sweep``) says what
+``nirl-mj compare``), ``kind = "sweep"`` (Fig. 6, ``nirl-mj sweep``) or ``kind = "suite"``
+(the protocol of compare along one or more ``[[axis]]``, ``nirl-mj suite``) says what
 runs it; every other key is documented in docs/EXPERIMENTS.md. An unknown key,
 a wrong type or a value out of range raises :class:`ExperimentError` naming the
 file, the key and what is accepted, as task files do (``nirl_mj.sim.spec``).
@@ -10,7 +11,8 @@ A *method* is a row of the results: a trainable IRL method (``kind = "irl"``:
 NIRL's loop with a reward step from ``nirl_mj.learn.methods.REWARD_STEPS`` and a
 preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), DAgger with the
 demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a
-reference policy (``"forward"``, ``"rule"``), or a Stable-Baselines3 learner (``"rl"``,
+reference policy (``"forward"``, ``"rule"``), the demonstrator itself driving the test arenas
+(``"expert"``), or a Stable-Baselines3 learner (``"rl"``,
 ``nirl_mj.experiments.rl``; compare experiments only, needs ``nirl-mj[gym]``): PPO or DQN on
 the task's reward (the RL reference), or GAIL / AIRL, PPO on a discriminator's reward learned
 from the demonstrations. The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]``
@@ -32,25 +34,28 @@ from typing import Any
 
 from nirl_mj.experiments.rl import ALGOS, LEGACY, SELECTIONS, run_config
 from nirl_mj.experiments.seeds import TEST_DOMAINS
-from nirl_mj.experts import EXPERT_KINDS
+from nirl_mj.experts import demonstrator_names
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes, without_retired
 from nirl_mj.sim import spec as specs
+from nirl_mj.sim.floorplans import FAMILIES
 from nirl_mj.sim.spec import SpecError
 
-KINDS = ("compare", "sweep")
-METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl")
+KINDS = ("compare", "sweep", "suite")
+METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl", "expert")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
                "method", "demos", "config", "quick", "test_domain")  # fmt: skip
 KEYS = {
     "compare": (*COMMON_KEYS, "paper", "strip"),
     "sweep": (*COMMON_KEYS, "obstacles", "speeds"),
+    "suite": (*COMMON_KEYS, "axis"),
 }
 DEMO_KEYS = ("expert", "episodes", "per_run")
 METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps", "selection", "envs", "settings")
 RL_KEYS = ("algo", "steps", "selection", "envs", "settings")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
+AXIS_KEYS = ("name", "values", "test_task")
 SET_SECTIONS = ("arena", "robot", "sensing", "control")
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")  # method names become file and cell names
 
@@ -116,6 +121,8 @@ BUILTIN_METHODS = {
     "DAgger": MethodSpec("DAgger", "dagger"),
     "forward": MethodSpec("forward", "forward"),
     "rule": MethodSpec("rule", "rule"),
+    # the experiment's demonstrator driving the test arenas (its own success and SPL)
+    "expert": MethodSpec("expert", "expert"),
     # the RL reference, its checkpoint chosen by the success of its own training episodes (it reads
     # the task's reward anyway); budget and learning rate tuned on the development domain
     # (tasks/ablations/rl_reference.toml)
@@ -166,6 +173,53 @@ class StripSpec:
     height: int = 360
 
 
+TRAINING_AXES = {
+    "demonstrations": "episodes of demonstrations per run",
+    "demonstrator": "who demonstrates (nirl_mj.experts: an expert kind or a DEMONSTRATORS name)",
+}
+"""Axes along which the learners train again: a value changes the demonstrations."""
+
+TEST_AXES = {
+    "obstacles": ("arena", "static_obstacles"),
+    "speed": ("control", "speed"),
+    "moving": ("arena", "moving_obstacles"),
+    "family": ("arena", "floor_plan"),
+}
+"""Axes along which the policies trained once on ``task`` are tested unchanged: the test task's
+(section, field) a value sets."""
+
+AXES = (*TRAINING_AXES, *TEST_AXES)
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A suite's axis: ``name`` (:data:`AXES`), its ``values`` in order, and for a test axis the task
+    its values change (the experiment's ``test_task`` unless the axis names its own)."""
+
+    name: str
+    values: tuple
+    test_task: specs.TaskSpec | None = None
+
+    @property
+    def trains(self) -> bool:
+        """Whether a value changes the training (the demonstrations) rather than the tests only."""
+        return self.name in TRAINING_AXES
+
+    def task_at(self, value: Any) -> specs.TaskSpec:
+        """The test task at ``value`` of a test axis."""
+        section, key = TEST_AXES[self.name]
+        return specs.replace(self.test_task, **{section: {key: value}})
+
+    def identity(self) -> dict:
+        return {"name": self.name, "values": list(self.values),
+                "test_task": None if self.test_task is None else self.test_task.to_dict()}  # fmt: skip
+
+
+def value_name(value: Any) -> str:
+    """An axis value as it appears in cell ids, file names and the CSV (3.0 -> "3")."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 @dataclass(frozen=True)
 class Experiment:
     """A resolved experiment: tasks loaded, methods looked up, ``[quick]`` applied if asked."""
@@ -191,6 +245,7 @@ class Experiment:
     # demonstrations drawn per run (run r's seeded seed + r) instead of one set for every run
     demos_per_run: bool = False
     test_domain: str = "test"  # "test": the development arenas; "final": the reported tables' arenas
+    axes: tuple[Axis, ...] = ()  # a suite's
 
     def identity(self) -> dict:
         """Everything that changes a cell's result, as JSON: an output directory holds one identity."""
@@ -216,7 +271,16 @@ class Experiment:
             data["demos_per_run"] = True
         if self.test_domain != "test":
             data["test_domain"] = self.test_domain
+        if self.axes:
+            data["axes"] = [axis.identity() for axis in self.axes]
         return json.loads(json.dumps(data))
+
+    def at(self, value: Any) -> Experiment:
+        """A suite with a training axis at one of its values: the comparison its cells of that value
+        belong to (the demonstrations' count or demonstrator changed)."""
+        (axis,) = self.axes
+        change = {"demonstrations": {"demos": value}, "demonstrator": {"expert": value}}[axis.name]
+        return dataclasses.replace(self, kind="compare", axes=(), **change)
 
     def cell_task(self, obstacles: int, speed: float) -> specs.TaskSpec:
         """The test task of a sweep cell: ``obstacles`` static obstacles, ``speed`` m/s."""
@@ -269,7 +333,7 @@ def from_dict(
 
     demos = _table(data.get("demos", {}), where("demos"))
     _known(demos, DEMO_KEYS, where("demos"), "")
-    expert = _choice(demos.get("expert", "sensor"), EXPERT_KINDS, f"{where('demos')}.expert")
+    expert = _choice(demos.get("expert", "sensor"), demonstrator_names(), f"{where('demos')}.expert")
     config = _learner_changes(_table(data.get("config", {}), where("config")), where("config"))
     methods = _methods(data, config, where)
 
@@ -307,6 +371,7 @@ def from_dict(
         quick=quick,
         demos_per_run=_bool(demos.get("per_run", False), f"{where('demos')}.per_run"),
         test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
+        axes=_axes(data, test_task, base, where) if kind == "suite" else (),
     )  # fmt: skip
     if kind == "sweep":
         rl = [m.name for m in methods if m.kind == "rl"]
@@ -326,6 +391,60 @@ def from_dict(
                 except SpecError as exc:
                     raise ExperimentError(f"{source}: cell ({n} obstacles, {v} m/s): {exc}") from None
     return experiment
+
+
+def _axes(data: dict, test_task: specs.TaskSpec, base: Path, where) -> tuple[Axis, ...]:
+    """A suite's ``[[axis]]`` tables: one training axis, or one or more test axes."""
+    tables = _list(data.get("axis", []), where("axis"))
+    if not tables:
+        raise ExperimentError(
+            f"{where('axis')}: a suite needs at least one [[axis]] table; axes: {', '.join(AXES)}"
+        )
+    axes = []
+    for i, table in enumerate(tables):
+        at = f"{where('axis')}[{i}]"
+        table = _table(table, at)
+        _known(table, AXIS_KEYS, at, "")
+        name = _choice(table.get("name"), AXES, f"{at}.name")
+        values = _list(table.get("values"), f"{at}.values")
+        if not values:
+            raise ExperimentError(f"{at}.values: list at least one value")
+        checked = tuple(_axis_value(name, v, f"{at}.values[{j}]") for j, v in enumerate(values))
+        if len({value_name(v) for v in checked}) != len(checked):
+            raise ExperimentError(f"{at}.values {list(values)}: every value must differ (one point each)")
+        if name in TRAINING_AXES:
+            if "test_task" in table:
+                raise ExperimentError(f"{at}.test_task: only a test axis ({', '.join(TEST_AXES)}) takes one")
+            axes.append(Axis(name, checked))
+            continue
+        task = _task(table["test_task"], base, {}, f"{at}.test_task") if "test_task" in table else test_task
+        axis = Axis(name, checked, task)
+        for v in checked:
+            try:
+                axis.task_at(v)
+            except SpecError as exc:
+                raise ExperimentError(f"{at}: {name} = {value_name(v)}: {exc}") from None
+        axes.append(axis)
+    names = [a.name for a in axes]
+    if len(set(names)) != len(names):
+        raise ExperimentError(f"{where('axis')}: an axis is given twice: {names}")
+    if any(a.trains for a in axes) and len(axes) > 1:
+        raise ExperimentError(
+            f"{where('axis')}: {names}: a training axis ({', '.join(TRAINING_AXES)}) "
+            "must be the suite's only axis (its values train every learner again)"
+        )
+    return tuple(axes)
+
+
+def _axis_value(name: str, value: Any, where: str) -> Any:
+    if name in ("demonstrations",):
+        return _int(value, where, 1)
+    if name in ("obstacles", "moving"):
+        return _int(value, where, 0)
+    if name == "speed":
+        return _number(value, where, 0.0)
+    accepted = demonstrator_names() if name == "demonstrator" else FAMILIES
+    return _choice(value, accepted, where)
 
 
 def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:

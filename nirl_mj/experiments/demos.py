@@ -21,20 +21,42 @@ from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.executors import Cell, Executor, Failure
 from nirl_mj.experiments.seeds import episode_seed
-from nirl_mj.experts import make_expert
+from nirl_mj.experts import DEMONSTRATORS, EXPERT_KINDS, Expert, demonstrator_names, make_expert
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.spec import TaskSpec
 
 
 @dataclass(frozen=True)
 class ExpertConfig:
-    """Which demonstrator, and its noise if ``kind`` is ``"noisy"``."""
+    """Which demonstrator, its noise if ``kind`` is ``"noisy"``, and its delay in decisions (0: none,
+    :class:`nirl_mj.experts.late.LateExpert`)."""
 
     kind: str = "sensor"
     base: str = "sensor"
     slip: float = 0.1
     random: float = 0.05
     seed: int = 0
+    delay: int = 0
+
+    @classmethod
+    def named(cls, name: str, seed: int = 0) -> ExpertConfig:
+        """The demonstrator ``name`` (an expert kind or a ``nirl_mj.experts.DEMONSTRATORS`` name)."""
+        if name in DEMONSTRATORS:
+            return cls(**DEMONSTRATORS[name], seed=seed)
+        if name not in EXPERT_KINDS:
+            raise ValueError(f"unknown demonstrator {name!r}: accepted: {', '.join(demonstrator_names())}")
+        return cls(name, seed=seed)
+
+    def build(self) -> Expert:
+        """A fresh demonstrator of this configuration."""
+        fields = asdict(self)
+        delay = fields.pop("delay")
+        expert = make_expert(**fields)
+        if delay:
+            from nirl_mj.experts.late import LateExpert
+
+            expert = LateExpert(expert, delay)
+        return expert
 
 
 class _Runner:
@@ -45,7 +67,7 @@ class _Runner:
 
         self.key = (task, expert)
         self.env = make_env(task)
-        self.expert = make_expert(**asdict(expert))
+        self.expert = expert.build()
 
 
 _runner: _Runner | None = None  # this process's, kept between the cells of one collection
@@ -77,7 +99,7 @@ def collect(
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
-    make_expert(**asdict(expert))  # a bad configuration fails here, not in a worker
+    expert.build()  # a bad configuration fails here, not in a worker
     done: dict[str, Trajectory] = {}
 
     def arrived(cell_id: str, path: Any, failure: Failure | None) -> None:

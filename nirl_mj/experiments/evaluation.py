@@ -17,18 +17,19 @@ import numpy as np
 from nirl_mj.data.outcomes import metrics_of
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experts.policies import PolicyAgent
-from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.episode import Agent, run_episode
 
 
 def evaluate(
     env: dm_env.Environment,
-    policy: Callable[[np.ndarray], int],
+    policy: Callable[[np.ndarray], int] | Agent,
     seeds: Iterable[int],
     name: str = "policy",
     on_episode: Callable[[Trajectory], None] | None = None,
 ) -> tuple[dict, list[Trajectory]]:
-    """Runs the (greedy) ``policy`` on phi(s) once in each arena; returns metrics and trajectories."""
-    agent = PolicyAgent(policy, name)
+    """Runs the (greedy) ``policy`` on phi(s), or an Agent (an expert), once in each arena; returns
+    metrics and trajectories."""
+    agent = policy if hasattr(policy, "act") else PolicyAgent(policy, name)
     trajectories = []
     for seed in seeds:
         trajectories.append(run_episode(env, agent, seed))

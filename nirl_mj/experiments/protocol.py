@@ -129,7 +129,7 @@ def ensure_demos(
         return path
     which = f" for run {run}" if experiment.demos_per_run else ""
     log(f"demonstrations{which}: {experiment.demos} episodes by the {experiment.expert} expert (seed {seed})")
-    trajectories = collect(experiment.task, ExpertConfig(experiment.expert, seed=seed),
+    trajectories = collect(experiment.task, ExpertConfig.named(experiment.expert, seed),
                            experiment.demos, seed, workers)  # fmt: skip
     path.parent.mkdir(parents=True, exist_ok=True)
     save_dataset(path, trajectories)
@@ -237,7 +237,8 @@ def ensure_trained(job: RunJob) -> dict:
 
 
 def policy_of(job: RunJob, train: bool = True) -> Callable:
-    """The job's greedy policy on phi(s), training (or resuming) it first if it trains; with
+    """The job's greedy policy on phi(s) (for ``kind = "expert"``: the demonstrator, an Agent that
+    reads the whole observation), training (or resuming) it first if it trains; with
     ``train=False`` a run that has not finished is an error (a sweep's tests only load)."""
     kind = job.method.kind
     if kind == "irl":
@@ -282,14 +283,19 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
 
         settings = CloneSettings.of(job.method.variant)
         return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed, settings=settings)
+    if kind == "expert":  # an Agent (it reads the whole observation), not a policy on phi(s)
+        from nirl_mj.experiments.demos import ExpertConfig
+
+        return ExpertConfig.named(job.expert, job.seed).build()
     from nirl_mj.experts.policies import always_forward, rule_policy
 
     return {"forward": always_forward, "rule": rule_policy}[kind]
 
 
 def evaluate_policy(policy: Callable, task: TaskSpec, seeds: tuple[int, ...], name: str) -> dict:
-    """Success, collision, timeout and physics-error rates, SPL, mean path length (m) and test count
-    of ``policy`` on the arenas ``seeds`` of ``task`` (greedy, one episode each)."""
+    """Success, collision, timeout and physics-error rates, SPL, SCT, mean path length (m) and test
+    count of ``policy`` (:func:`policy_of`) on the arenas ``seeds`` of ``task`` (greedy, one episode
+    each)."""
     from nirl_mj.experiments.evaluation import evaluate
     from nirl_mj.sim.task import make_env
 

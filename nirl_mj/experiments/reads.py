@@ -24,10 +24,13 @@ VOCABULARY = {
     "its own training episodes), to choose a policy",
     "interactive_expert": "the expert queried in states the learner visits (DAgger)",
     "hand_written": "a policy written by hand for this task (it knows the goal without learning it)",
+    "demonstrator": "it is the demonstrator (it reads what its kind reads: the sensor expert the rays, "
+    "odometry and target, the planner the whole arena)",
 }
 """Every word a ``reads`` list may hold, with what it means."""
 
-TASK_SIGNALS = ("task_outcome", "task_reward", "task_success_selection", "interactive_expert", "hand_written")
+TASK_SIGNALS = ("task_outcome", "task_reward", "task_success_selection", "interactive_expert", "hand_written",
+                "demonstrator")  # fmt: skip
 """The words that make a method a reference rather than a learner from demonstrations."""
 
 LEARNER_BUDGET = ("demonstrations", "features", "episode_end")
@@ -78,6 +81,8 @@ def method_reads(method: Any, shared_config: dict | None = None) -> list[str]:
         return ["features", "hand_written"]
     if kind == "forward":
         return ["hand_written"]
+    if kind == "expert":
+        return ["demonstrator"]
     raise ValueError(f"unknown method kind {kind!r}")
 
 

@@ -73,6 +73,7 @@ def summarise_runs(rows: Sequence[dict]) -> dict:
         "timeout": mean("timeout_rate"),
         "physics_error": mean("physics_error_rate"),
         "spl": mean("spl"),
+        "sct": mean("sct") if all("sct" in r for r in rows) else None,  # cells before 2026-11-26 lack it
         "per_run": success,
     }
 

@@ -10,11 +10,28 @@ from __future__ import annotations
 
 from nirl_mj.sim.episode import Agent as Expert
 
-__all__ = ["EXPERT_KINDS", "Expert", "make_expert"]
+__all__ = ["DEMONSTRATORS", "EXPERT_KINDS", "Expert", "demonstrator_names", "make_expert"]
 
 EXPERT_KINDS = ("planner", "sensor", "noisy", "rule", "forward")
 """Demonstrators by name: the map-aware planner, the sensor-based expert, either
 of them with noise, and the reference policies on phi(s)."""
+
+DEMONSTRATORS = {
+    "sensor-random10": {"kind": "noisy", "base": "sensor", "slip": 0.0, "random": 0.1},
+    "sensor-random30": {"kind": "noisy", "base": "sensor", "slip": 0.0, "random": 0.3},
+    "sensor-random50": {"kind": "noisy", "base": "sensor", "slip": 0.0, "random": 0.5},
+    "sensor-late2": {"kind": "sensor", "delay": 2},
+}
+"""Named demonstrators of experiment files beyond :data:`EXPERT_KINDS` (the demonstrator suite,
+tasks/suites/quality.toml): the sensor expert with 10, 30 or 50 % of its decisions replaced by a
+uniformly random action (which may be the one it chose), and the sensor expert turning two decisions
+(one second) late, a systematic flaw (:class:`nirl_mj.experts.late.LateExpert`). Values are
+``nirl_mj.experiments.demos.ExpertConfig`` fields."""
+
+
+def demonstrator_names() -> tuple[str, ...]:
+    """Every demonstrator an experiment file may name: the expert kinds and :data:`DEMONSTRATORS`."""
+    return (*EXPERT_KINDS, *DEMONSTRATORS)
 
 
 def make_expert(

@@ -93,6 +93,9 @@ class LoopConfig:
     hidden_units: int = 32
     n_step: int = 3
     train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
+    # "map": the demonstrations' ambiguous states relabelled with eq. 10's MAP action before anything
+    # reads them (paper section IV-A, learn/pretreat.py, uniform prior); "none": as recorded
+    pretreatment: str = "none"
 
     @property
     def reads_outcome(self) -> bool:
@@ -107,6 +110,7 @@ class LoopConfig:
         _choice("terminal_value", self.terminal_value, TERMINAL_VALUES)
         _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
+        _choice("pretreatment", self.pretreatment, ("none", "map"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
@@ -238,6 +242,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "reward_ceiling": 1.0,
     "input_bearing": False,
     "terminal_value": "outcome",
+    "pretreatment": "none",
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""

@@ -42,6 +42,7 @@ from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
+from nirl_mj.learn.pretreat import map_pretreat
 from nirl_mj.learn.reward import RewardModel, all_action_features
 from nirl_mj.learn.terminal import absorbing_values
 
@@ -135,6 +136,8 @@ class IrlLoop:
     def __init__(self, config: LearnerConfig, demos: list[Trajectory], seed: int) -> None:
         if not demos:
             raise ValueError("the IRL loop needs at least one demonstration")
+        if config.loop.pretreatment == "map":
+            demos, _ = map_pretreat(demos)
         self.config = config
         self.loop = config.loop
         self.seed = seed

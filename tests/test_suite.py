@@ -1,0 +1,268 @@
+"""Suites (``nirl-mj suite``): axes validated like any experiment key, tidy CSV rows equal to the cells,
+a killed suite resumed without recomputation, navigation metrics by hand, the named demonstrators."""
+
+import csv
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nirl_mj.cli import main
+from nirl_mj.data.outcomes import metrics_of, sct, spl
+from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.experiments.definition import ExperimentError, from_dict, load_experiment
+from nirl_mj.experiments.demos import ExpertConfig
+from nirl_mj.experiments.suite import CSV_COLUMNS
+from nirl_mj.experts.late import LateExpert
+from nirl_mj.sim import spec
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# the tiny task of tests/test_experiments.py: a 30 m arena, 3 obstacles, seconds per cell
+TOP = "runs = 2\ntests = 2\n"  # before the head: keys after an [[axis]] table belong to it
+TINY = """
+[set.arena]
+size = [30.0, 30.0]
+start = [5.0, 5.0]
+target = [25.0, 25.0]
+static_obstacles = 3
+[set.robot]
+drive = "planar"
+[demos]
+episodes = 2
+[config]
+episodes = 1
+trajectories_per_episode = 2
+validation_arenas = 2
+"""
+TRAINING = """kind = "suite"
+methods = ["NIRL", "BC", "rule", "expert"]
+[[axis]]
+name = "demonstrator"
+values = ["sensor", "sensor-random30"]
+"""
+TRANSFER = """kind = "suite"
+methods = ["BC", "rule"]
+[[axis]]
+name = "obstacles"
+values = [1, 3]
+[[axis]]
+name = "speed"
+values = [1.0, 2.0]
+"""
+
+
+def write(tmp: Path, head: str, name: str) -> Path:
+    path = tmp / f"{name}.toml"
+    path.write_text(TOP + head + TINY)
+    return path
+
+
+def args(spec_path: Path, out: Path, *extra: str) -> list[str]:
+    return ["suite", "--task", str(spec_path), "--out", str(out), "--executor", "serial", "--quiet", *extra]
+
+
+def cells(out: Path) -> dict:
+    return {p.stem: json.loads(p.read_text())["result"] for p in sorted((out / "cells").glob("*.json"))}
+
+
+@pytest.fixture(scope="module")
+def training_suite(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("suite")
+    path, out = write(tmp, TRAINING, "training"), tmp / "out"
+    assert main(args(path, out, "--json")) == 0
+    return path, out, cells(out)
+
+
+# -- the file -----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("axis", "message"),
+    [
+        (None, "a suite needs at least one [[axis]] table"),
+        ([{"name": "clutter", "values": [1]}], "axis[0].name = 'clutter': accepted: demonstrations, demo"),
+        ([{"name": "obstacles", "values": []}], "axis[0].values: list at least one value"),
+        ([{"name": "obstacles", "values": 5}], "axis[0].values = 5: expected a list"),
+        ([{"name": "obstacles", "values": [5, "many"]}], "values[1] = 'many': expected a whole number"),
+        ([{"name": "speed", "values": [1.0, 1]}], "every value must differ"),
+        ([{"name": "speed", "values": [9.0]}], "axis[0]: speed = 9: "),
+        ([{"name": "demonstrations", "values": [0]}], "axis[0].values[0] = 0: must be >= 1"),
+        ([{"name": "demonstrator", "values": ["human"]}], "axis[0].values[0] = 'human': accepted: planner"),
+        ([{"name": "family", "values": ["maze"]}], "axis[0].values[0] = 'maze': accepted: random, corridors"),
+        ([{"name": "obstacles", "values": [1], "step": 2}], "axis[0]: unknown key(s) step; accepted: name"),
+        ([{"name": "demonstrations", "values": [1], "test_task": "structured"}], "only a test axis"),
+        ([{"name": "demonstrations", "values": [1]}, {"name": "speed", "values": [1.0]}],
+         "must be the suite's only axis"),
+        ([{"name": "speed", "values": [1.0]}, {"name": "speed", "values": [2.0]}], "an axis is given twice"),
+        ("speed", "axis = 'speed': expected a list"),
+    ],
+)  # fmt: skip
+def test_a_bad_axis_is_one_error_naming_the_key(axis, message):
+    data = {"kind": "suite"} if axis is None else {"kind": "suite", "axis": axis}
+    with pytest.raises(ExperimentError) as err:
+        from_dict(data, "s.toml")
+    assert message in str(err.value) and str(err.value).startswith("s.toml")
+    assert "\n" not in str(err.value)
+
+
+def test_an_axis_belongs_to_suites_only():
+    with pytest.raises(ExperimentError, match=r"unknown key\(s\) axis \(kind compare\)"):
+        from_dict({"kind": "compare", "axis": [{"name": "speed", "values": [1.0]}]}, "s.toml")
+
+
+def test_a_suite_error_on_the_command_line_is_one_error_line(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text('kind = "suite"\n[[axis]]\nname = "obstacles"\nvalues = []\n')
+    assert main(["suite", "--task", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("nirl-mj suite: error:") and "axis[0].values" in err[0]
+    assert not (tmp_path / "out").exists()  # nothing made before the file is valid
+
+
+def test_the_shipped_suites_load_with_their_axes():
+    demos = load_experiment("suites/demos")
+    assert [(a.name, a.values) for a in demos.axes] == [("demonstrations", (1, 3, 10, 30, 100))]
+    assert demos.at(3).demos == 3 and demos.at(3).kind == "compare"
+    quality = load_experiment("suites/quality")
+    (axis,) = quality.axes
+    assert axis.values[0] == "sensor" and quality.at("sensor-random30").expert == "sensor-random30"
+    transfer = load_experiment("suites/transfer")
+    assert [a.name for a in transfer.axes] == ["obstacles", "speed", "moving", "family"]
+    family = transfer.axes[-1]
+    assert family.task_at("rooms").arena.floor_plan == "rooms"
+    assert transfer.axes[0].task_at(40).arena.static_obstacles == 40
+    for suite in (demos, quality, transfer):
+        assert suite.runs >= 5 and suite.test_domain == "final" and suite.demos_per_run
+        assert load_experiment(suite.source, quick=True).runs < suite.runs
+
+
+# -- running ------------------------------------------------------------------------------------------
+
+
+def test_the_csv_rows_are_the_cells_results(training_suite):
+    _, out, results = training_suite
+    with open(out / "suite.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == CSV_COLUMNS
+    # (2 demonstrators) x (NIRL, BC, rule, expert) x 2 runs; rule is computed once and stands at both
+    assert len(rows) == 2 * 4 * 2
+    assert sum(1 for c in results if ".rule-" in c) == 2 and len(results) == 2 * 3 * 2 + 2
+    for row in rows:
+        own = f"demonstrator-{row['value']}.{row['method']}-run{int(row['run']):03d}"
+        cell = results.get(own) or results[f"demonstrator-any.{row['method']}-run{int(row['run']):03d}"]
+        assert float(row["success"]) == pytest.approx(cell["success_rate"], abs=1e-6)
+        assert float(row["spl"]) == pytest.approx(cell["spl"], abs=1e-6)
+        assert float(row["sct"]) == pytest.approx(cell["sct"], abs=1e-6)
+        assert int(row["tests"]) == cell["tests"] == 2
+    summary = json.loads((out / "results.json").read_text())
+    rule = [p for p in summary["points"] if p["method"] == "rule"]
+    assert all(p["flat"] for p in rule) and rule[0]["avg"] == rule[1]["avg"]
+    assert (out / "demonstrator.png").stat().st_size > 10_000
+    assert "| BC |" in (out / "suite.md").read_text()
+
+
+def test_the_expert_row_is_the_demonstrator_of_each_value(training_suite):
+    _, _, results = training_suite
+    clean = [results[f"demonstrator-sensor.expert-run{r:03d}"] for r in range(2)]
+    noisy = [results[f"demonstrator-sensor-random30.expert-run{r:03d}"] for r in range(2)]
+    assert sum(c["success_rate"] for c in clean) > 0  # the tiny arena is solvable: a test that can fail
+    # a random action in 30 % of decisions drives other paths on the same arenas
+    assert [c["mean_path_length"] for c in clean] != [c["mean_path_length"] for c in noisy]
+
+
+def test_a_killed_suite_resumes_without_recomputing_finished_cells(training_suite, tmp_path):
+    path, _, reference = training_suite
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "nirl_mj.cli", *args(path, out)]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 180
+    while len(list((out / "cells").glob("*.json"))) < 4 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert 4 <= len(before) < len(reference), "the suite was not killed part-way"
+    assert main(args(path, out)) == 0
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert {name: after[name] for name in before} == before  # finished cells were not recomputed
+    assert cells(out) == reference
+
+
+def test_a_transfer_suite_trains_once_and_tests_every_point(tmp_path):
+    path, out = write(tmp_path, TRANSFER, "transfer"), tmp_path / "out"
+    assert main(args(path, out)) == 0
+    results = cells(out)
+    assert sorted(results) == ["BC-run000", "BC-run001", "rule-run000", "rule-run001"]
+    assert sorted(results["BC-run000"]["points"]) == ["obstacles=1", "obstacles=3", "speed=1", "speed=2"]
+    with open(out / "suite.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == (2 + 2) * 2 * 2  # points x methods x runs
+    assert (out / "obstacles.png").is_file() and (out / "speed.png").is_file()
+    # --only: a method's cells alone; the others are reported as stored
+    assert main(args(path, out, "--only", "rule")) == 0
+
+
+# -- metrics and demonstrators -------------------------------------------------------------------------
+
+
+def episode(outcome: str, poses: list[tuple[float, float]], period: float) -> Trajectory:
+    task = spec.load_task("navigate").to_dict()
+    task["arena"] = {**task["arena"], "target": [10.0, 0.0], "target_radius": 1.0}
+    t = len(poses) - 1
+    return Trajectory(features=np.zeros((t + 1, 16), np.float32), actions=np.zeros(t, np.int8),
+                      ranges=np.ones((t + 1, 9), np.float32),
+                      poses=np.array([[x, y, 0.0] for x, y in poses]), times=np.arange(t + 1) * period,
+                      arena_seed=1, task=task, speed=2.0, outcome=outcome, demonstrator="test")  # fmt: skip
+
+
+def test_spl_and_sct_on_hand_computed_episodes():
+    # start (0, 0), target (10, 0) of radius 1: the straight line to the rim is L = 9 m, at 2 m/s C = 4.5 s
+    arrived = episode("target", [(0, 0), (0, 3), (4, 0), (9, 0)], period=2.0)  # P = 3 + 5 + 5 = 13 m, T = 6 s
+    crashed = episode("collision", [(0, 0), (1, 0)], period=0.5)
+    fast = episode("target", [(0, 0), (9, 0)], period=1.0)  # P = 9 m in T = 1 s: both metrics are 1
+    assert spl([arrived]) == pytest.approx(9 / 13) and sct([arrived]) == pytest.approx(4.5 / 6)
+    assert spl([arrived, crashed]) == pytest.approx(9 / 26) and sct([arrived, crashed]) == pytest.approx(
+        0.375
+    )
+    assert spl([fast]) == pytest.approx(1.0) and sct([fast]) == pytest.approx(1.0)
+    m = metrics_of([arrived, crashed, fast])
+    assert m["sct"] == pytest.approx((0.75 + 0 + 1) / 3) and m["spl"] == pytest.approx((9 / 13 + 1) / 3)
+
+
+class Scripted:
+    kind = "scripted"
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def reset(self, env, timestep) -> None:
+        self.n = 0
+
+    def act(self, timestep) -> int:
+        self.n += 1
+        return self.n  # 1, 2, 3, ...
+
+
+def test_the_late_expert_executes_its_decision_of_delay_decisions_ago():
+    late = LateExpert(Scripted(), delay=2)
+    late.reset(None, None)
+    assert [late.act(None) for _ in range(5)] == [0, 0, 1, 2, 3]  # forward first, then 2 decisions late
+    late.reset(None, None)
+    assert late.act(None) == 0 and late.kind == "late2-scripted"
+    with pytest.raises(ValueError, match="delay = 0: must be a whole number >= 1"):
+        LateExpert(Scripted(), delay=0)
+
+
+def test_named_demonstrators_resolve_to_their_settings():
+    noisy = ExpertConfig.named("sensor-random30", seed=4)
+    assert (noisy.kind, noisy.base, noisy.slip, noisy.random, noisy.seed) == ("noisy", "sensor", 0.0, 0.3, 4)
+    assert ExpertConfig.named("sensor-late2").build().kind == "late2-sensor"
+    assert ExpertConfig.named("planner") == ExpertConfig("planner")
+    with pytest.raises(ValueError, match="unknown demonstrator 'human': accepted: planner, sensor"):
+        ExpertConfig.named("human")
