@@ -266,3 +266,51 @@ def test_named_demonstrators_resolve_to_their_settings():
     assert ExpertConfig.named("planner") == ExpertConfig("planner")
     with pytest.raises(ValueError, match="unknown demonstrator 'human': accepted: planner, sensor"):
         ExpertConfig.named("human")
+
+
+# -- leaderboard --------------------------------------------------------------------------------------
+
+
+def compared(tmp: Path, name: str, methods: str, extra: str = "") -> Path:
+    """The tiny task compared for ``methods`` (a TOML list) into tmp/NAME; returns that directory."""
+    path, out = tmp / f"{name}.toml", tmp / name
+    path.write_text(f'kind = "compare"\n{TOP}methods = {methods}\n{extra}{TINY}')
+    assert main(["compare", "--task", str(path), "--out", str(out), "--executor", "serial", "--quiet"]) == 0
+    return out
+
+
+def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(tmp_path, capsys):
+    from nirl_mj.experiments import tidy
+
+    a, b = compared(tmp_path, "a", '["BC", "rule"]'), compared(tmp_path, "b", '["forward", "rule"]')
+    out = tmp_path / "board"
+    assert main(["leaderboard", str(a), str(b), "--out", str(out)]) == 0
+    merged = tidy.read(out / "leaderboard.csv")
+    inputs = tidy.read(a / "rows.csv") + [r for r in tidy.read(b / "rows.csv") if r["method"] == "forward"]
+    assert merged == inputs  # rule is one computation in both: taken once, from the first
+    table = (out / "leaderboard.md").read_text()
+    assert table.index("| rule |") < table.index("| forward |") and (out / "leaderboard.png").is_file()
+    assert main(["leaderboard", str(a), "--out", str(out)]) == 2  # an earlier leaderboard: not replaced
+    assert "pass --overwrite" in capsys.readouterr().err
+    c = compared(tmp_path, "c", '["rule"]', "seed = 5\n")  # another protocol: other test arenas
+    capsys.readouterr()
+    assert main(["leaderboard", str(a), str(c), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "differ in seed" in err[0] and not (tmp_path / "x").exists()
+    d = compared(tmp_path, "d", '["BC"]', '[method.BC]\nvariant = "paper"\n')  # one name, two computations
+    capsys.readouterr()
+    assert main(["leaderboard", str(a), str(d), "--out", str(tmp_path / "y")]) == 2
+    assert "method BC of" in capsys.readouterr().err
+
+
+def test_the_example_method_joins_the_comparison_and_the_leaderboard_from_outside(tmp_path, capsys):
+    """CI installs examples/knn_method (pip install -e): its method runs through compare by name."""
+    from nirl_mj.experiments.plugins import discovered
+
+    if "KNN" not in discovered():
+        pytest.skip("examples/knn_method is not installed: pip install -e examples/knn_method")
+    out = tmp_path / "knn"
+    example = ROOT / "examples" / "knn_method" / "experiment.toml"
+    assert main(["compare", "--task", str(example), "--out", str(out), "--quiet", "--runs", "1"]) == 0
+    assert main(["leaderboard", str(out), "--out", str(tmp_path / "board")]) == 0
+    assert "| KNN |" in (tmp_path / "board" / "leaderboard.md").read_text()

@@ -443,6 +443,16 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     return 1 if summary["failures"] else 0
 
 
+def cmd_leaderboard(args: argparse.Namespace) -> int:
+    """Merges output directories of compare and suite into one ranked table (docs/EXTENDING.md)."""
+    from nirl_mj.experiments.leaderboard import write_leaderboard
+
+    table, files = write_leaderboard(args.dirs, args.out, args.overwrite)
+    print(table)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
 def cmd_task(args: argparse.Namespace) -> int:
     spec = load_task(args.task)
     print(json.dumps({**spec.to_dict(), "step_budget": spec.step_budget}, indent=2))

@@ -225,6 +225,11 @@ def build_parser() -> argparse.ArgumentParser:
     _experiment_command(sub, "suite", "tasks/suites/demos.toml", "the comparison along an axis "
                         "(demonstrations, demonstrator, obstacles, speed, moving, family): tidy CSV, curves")
 
+    p = _command(sub, "leaderboard", c.cmd_leaderboard, "merge output directories of compare or suite "
+                 "(the same protocol and test arenas) into one ranked table and plot", "overwrite", task=None)
+    p.add_argument("dirs", nargs="+", metavar="DIR", help="output directories of nirl-mj compare or suite")
+    p.add_argument("--out", default="runs/leaderboard", help="where to write it (default: runs/leaderboard)")
+
     p = _command(sub, "export", c.cmd_export, "write a dataset as a Minari dataset (replayed in the "
                  "environment: full observations, rewards, episode ends; needs nirl-mj[gym])", "quiet",
                  "overwrite", task=None)

@@ -13,6 +13,7 @@ methods' cells and reports the others as stored.
 Outputs in OUT:
 
 - ``table.md``, ``table.csv``, ``table.png`` (bar chart next to the paper's);
+- ``rows.csv``: one tidy row per (method, run) (``nirl_mj.experiments.tidy``, as suites write);
 - ``results.json``: the summaries, every cell's metrics, failed cells;
 - ``strip.png`` with a ``[strip]`` table (Fig. 8: snapshots of one test episode).
 """
@@ -27,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import Experiment, ExperimentError
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
@@ -272,7 +274,8 @@ def bar_chart(path: Path, summary: dict, title: str) -> Path:
     ax.set_yticks(range(0, 101, 20))
     ax.set_title(title, fontsize=9)
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", ncol=3)
+    if ax.get_legend_handles_labels()[0]:  # none when every cell failed
+        ax.legend(fontsize=8, loc="upper center", ncol=3)
     fig.tight_layout()
     write_figure(path, fig)
     plt.close(fig)
@@ -318,8 +321,16 @@ def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dic
 {runs_section(summary)}{paired_section(summary)}{failed_section(summary)}"""
     write_text(out / "table.md", text)
     write_text(out / "table.csv", csv_table(summary))
+    write_text(out / "rows.csv", tidy.csv_text(tidy_rows(experiment, results)))
     write_text(out / "results.json", json.dumps({**summary, "cells": results}, indent=1))
-    return [out / "table.md", out / "table.csv", out / "table.png", out / "results.json"]
+    return [out / "table.md", out / "table.csv", out / "rows.csv", out / "table.png", out / "results.json"]
+
+
+def tidy_rows(experiment: Experiment, results: dict) -> list[dict]:
+    """One tidy row per finished (method, run) (``nirl_mj.experiments.tidy``; no axis)."""
+    return [tidy.row(experiment.name, "", "", m.name, r, results[cell_id(m.name, r)])
+            for m in experiment.methods for r in range(experiment.runs)
+            if cell_id(m.name, r) in results]  # fmt: skip
 
 
 def write_strip(out: Path, experiment: Experiment, jobs: dict, log: Callable[[str], None]) -> Path | None:

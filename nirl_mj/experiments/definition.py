@@ -41,7 +41,7 @@ from nirl_mj.sim.floorplans import FAMILIES
 from nirl_mj.sim.spec import SpecError
 
 KINDS = ("compare", "sweep", "suite")
-METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl", "expert")
+METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl", "expert", "plugin")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
                "method", "demos", "config", "quick", "test_domain")  # fmt: skip
@@ -51,7 +51,18 @@ KEYS = {
     "suite": (*COMMON_KEYS, "axis"),
 }
 DEMO_KEYS = ("expert", "episodes", "per_run")
-METHOD_KEYS = ("kind", "variant", "method", "config", "algo", "steps", "selection", "envs", "settings")
+METHOD_KEYS = (
+    "kind",
+    "variant",
+    "method",
+    "config",
+    "algo",
+    "steps",
+    "selection",
+    "envs",
+    "settings",
+    "plugin",
+)
 RL_KEYS = ("algo", "steps", "selection", "envs", "settings")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
@@ -83,6 +94,7 @@ class MethodSpec:
     selection: str = LEGACY["selection"]
     envs: int = LEGACY["envs"]
     settings: dict = field(default_factory=dict)  # rl: changes to PPO's settings (experiments.rl.TUNABLE)
+    plugin: str = ""  # kind "plugin": the entry point of group nirl_mj.methods (experiments.plugins)
 
     @property
     def trains(self) -> bool:
@@ -456,9 +468,10 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
     for name in names:
         if not isinstance(name, str) or not _NAME.match(name):
             raise ExperimentError(f"{where('methods')}: {name!r}: a name of letters, digits, _ and -")
-        if name not in defined and name not in BUILTIN_METHODS:
+        if name not in defined and name not in BUILTIN_METHODS and name not in _installed():
             raise ExperimentError(
-                f"{where('methods')}: unknown method {name!r}; built in: {', '.join(BUILTIN_METHODS)}, "
+                f"{where('methods')}: unknown method {name!r}; built in: {', '.join(BUILTIN_METHODS)}; "
+                f"installed (entry points nirl_mj.methods): {', '.join(_installed()) or 'none'}; "
                 "or define it in a [method.NAME] table"
             )
         out.append(_method(name, defined.get(name), config, f"{where('method')}.{name}"))
@@ -470,8 +483,16 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
     return tuple(out)
 
 
+def _installed() -> dict:
+    from nirl_mj.experiments.plugins import discovered
+
+    return discovered()
+
+
 def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     base = BUILTIN_METHODS.get(name)
+    if base is None and name in _installed():
+        base = MethodSpec(name, "plugin", plugin=name)
     if table is None:
         method = base
     else:
@@ -484,8 +505,12 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             raise ExperimentError(f'{where}: method and config apply to kind = "irl" only')
         if kind not in ("irl", "bc", "dagger") and "variant" in table:
             raise ExperimentError(f'{where}: variant applies to kind = "irl", "bc" and "dagger" only')
-        if kind != "rl" and any(k in table for k in RL_KEYS):
+        if kind not in ("rl", "plugin") and any(k in table for k in RL_KEYS):
             raise ExperimentError(f'{where}: {", ".join(RL_KEYS)} apply to kind = "rl" only')
+        if kind == "plugin" and any(k in table for k in RL_KEYS if k not in ("steps", "settings")):
+            raise ExperimentError(f"{where}: a plugin takes steps (its budget) and settings only")
+        if "plugin" in table and kind != "plugin":
+            raise ExperimentError(f'{where}: plugin applies to kind = "plugin" only')
         method = MethodSpec(
             name,
             kind,
@@ -497,12 +522,25 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             _choice(table.get("selection", default.selection), SELECTIONS, f"{where}.selection"),
             _int(table.get("envs", default.envs), f"{where}.envs", 1),
             _table(table.get("settings", default.settings), f"{where}.settings"),
+            _str(table.get("plugin", default.plugin), f"{where}.plugin"),
         )
     if method.kind == "rl":
         try:
             run_config(method.algo, method.selection, method.envs, method.settings)
         except ValueError as exc:
             raise ExperimentError(f"{where}: {exc}") from None
+    if method.kind == "plugin":
+        from nirl_mj.experiments.plugins import load_method
+
+        if not method.plugin:
+            raise ExperimentError(
+                f'{where}: kind = "plugin" needs plugin = the name of an installed method '
+                f"(entry points nirl_mj.methods): {', '.join(_installed()) or 'none'}"
+            )
+        if method.plugin not in _installed():
+            raise ExperimentError(f"{where}: plugin = {method.plugin!r}: no installed package provides it; "
+                                  f"installed: {', '.join(_installed()) or 'none'}")  # fmt: skip
+        load_method(method.plugin, method.settings)  # its declarations and settings, checked now
     if method.trains:
         try:
             method.learner_config(config)
@@ -522,6 +560,12 @@ def _method_identity(method: MethodSpec) -> dict:
     ``selection`` and ``envs`` only where they are not the legacy ones, so that the identity of an
     experiment written before they existed is unchanged."""
     data = dataclasses.asdict(method)
+    if method.kind == "plugin":
+        from nirl_mj.experiments.plugins import version_of
+
+        return {"name": method.name, "kind": "plugin", "plugin": method.plugin, "steps": method.steps,
+                "settings": method.settings, "version": version_of(method.plugin)}  # fmt: skip
+    del data["plugin"]
     legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
     for key in RL_KEYS:
         if method.kind != "rl" or (legacy and key in LEGACY) or (key == "settings" and not method.settings):

@@ -55,6 +55,11 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+PERMANENT = "MethodError: "
+"""A cell whose last error line holds this broke a method's rules (``experiments.plugins``): running it
+again cannot change that, so it is not retried."""
+
+
 class ExecutorError(RuntimeError):
     """An executor cannot run: unknown name, bad worker count, Ray missing or unreachable."""
 
@@ -261,7 +266,7 @@ def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_do
                 if on_retry:
                     on_retry(cell.id, f"a worker process died while it ran beside others ({error}); "
                              "running it again alone, no attempt counted")  # fmt: skip
-            elif attempts[cell.id] <= retries:
+            elif attempts[cell.id] <= retries and PERMANENT not in error:
                 queue.append(cell)  # deterministic cells fail again; a lost process may not
                 if on_retry:
                     on_retry(

@@ -238,58 +238,18 @@ def ensure_trained(job: RunJob) -> dict:
 
 def policy_of(job: RunJob, train: bool = True) -> Callable:
     """The job's greedy policy on phi(s) (for ``kind = "expert"``: the demonstrator, an Agent that
-    reads the whole observation), training (or resuming) it first if it trains; with
-    ``train=False`` a run that has not finished is an error (a sweep's tests only load)."""
-    kind = job.method.kind
-    if kind == "irl":
-        from nirl_mj.experiments.seeds import seen_seeds
-        from nirl_mj.experiments.training import load_policy
+    reads the whole observation), training (or resuming) it first if it trains
+    (``nirl_mj.experiments.kinds``, the same for every kind); refused if its training saw one of the
+    run's test arenas. With ``train=False`` a run that has not finished is an error (a sweep's tests
+    only load)."""
+    from nirl_mj.experiments.kinds import KINDS
 
-        record = ensure_trained(job) if train else read_finished(job.run_dir)
-        policy, _ = load_policy(job.run_dir)
-        seen = seen_seeds(record)
-        if seen & set(job.test_seeds):
-            raise RuntimeError(
-                f"{job.run_dir}: test arenas seen in training: {sorted(seen & set(job.test_seeds))}"
-            )
-        return policy
-    if kind == "rl":
-        from nirl_mj.experiments.rl import ADVERSARIAL, ensure_rl_trained, load_rl_policy
-
-        if train:
-            demos = job.demos_path if job.method.algo in ADVERSARIAL else None
-            m = job.method
-            ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
-                              m.settings)  # fmt: skip
-        policy, record = load_rl_policy(job.run_dir)
-        seen = set(record["train_seeds"]) & set(job.test_seeds)
-        if seen:
-            raise RuntimeError(f"{job.run_dir}: test arenas seen in training: {sorted(seen)}")
-        return policy
-    if kind == "dagger":
-        from nirl_mj.data.dataset import load_dataset
-        from nirl_mj.experiments.dagger import train_dagger
-        from nirl_mj.learn.bc import CloneSettings
-
-        settings = CloneSettings.of(job.method.variant)
-        policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert,
-                                      settings=settings)  # fmt: skip
-        if set(arenas) & set(job.test_seeds):
-            raise RuntimeError(f"{job.method.name} run {job.run}: test arenas seen in training")
-        return policy
-    if kind == "bc":
-        from nirl_mj.data.dataset import load_dataset
-        from nirl_mj.learn.bc import CloneSettings, behaviour_cloning
-
-        settings = CloneSettings.of(job.method.variant)
-        return behaviour_cloning(load_dataset(job.demos_path), seed=job.seed, settings=settings)
-    if kind == "expert":  # an Agent (it reads the whole observation), not a policy on phi(s)
-        from nirl_mj.experiments.demos import ExpertConfig
-
-        return ExpertConfig.named(job.expert, job.seed).build()
-    from nirl_mj.experts.policies import always_forward, rule_policy
-
-    return {"forward": always_forward, "rule": rule_policy}[kind]
+    trained = KINDS[job.method.kind](job, train)
+    overlap = trained.seen & set(job.test_seeds)
+    if overlap:
+        raise RuntimeError(f"{job.method.name} run {job.run} ({job.run_dir}): test arenas seen in training: "
+                           f"{sorted(overlap)}")  # fmt: skip
+    return trained.policy
 
 
 def evaluate_policy(policy: Callable, task: TaskSpec, seeds: tuple[int, ...], name: str) -> dict:

@@ -83,6 +83,10 @@ def method_reads(method: Any, shared_config: dict | None = None) -> list[str]:
         return ["hand_written"]
     if kind == "expert":
         return ["demonstrator"]
+    if kind == "plugin":
+        from nirl_mj.experiments.plugins import method_reads as plugin_reads
+
+        return _ordered(set(plugin_reads(method.plugin, method.settings)))
     raise ValueError(f"unknown method kind {kind!r}")
 
 

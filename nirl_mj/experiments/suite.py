@@ -24,15 +24,14 @@ interval band) and ``results.json``.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import Axis, Experiment, ExperimentError, MethodSpec, value_name
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
@@ -50,9 +49,8 @@ from nirl_mj.experiments.protocol import (
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
-CSV_COLUMNS = ("suite", "axis", "value", "method", "run", "tests", "success", "collision", "timeout", "spl",
-               "sct")  # fmt: skip
-"""The tidy CSV's columns: rates as fractions (0..1); ``sct`` empty for a cell computed before it existed."""
+CSV_COLUMNS = tidy.COLUMNS
+"""The tidy CSV's columns (``nirl_mj.experiments.tidy``)."""
 
 ANY = "any"  # the value of a cell that does not depend on a training axis
 
@@ -193,13 +191,6 @@ def tidy_rows(experiment: Experiment, results: dict) -> list[dict]:
     """One row per (axis, value, method, run) with a finished cell (:data:`CSV_COLUMNS`); a method
     that does not depend on a training axis repeats its run's result at every value."""
     rows = []
-
-    def row(axis: str, value: Any, method: str, run: int, metrics: dict) -> dict:
-        return {"suite": experiment.name, "axis": axis, "value": value_name(value), "method": method,
-                "run": run, "tests": metrics["tests"], "success": metrics["success_rate"],
-                "collision": metrics["collision_rate"], "timeout": metrics["timeout_rate"],
-                "spl": metrics["spl"], "sct": metrics.get("sct")}  # fmt: skip
-
     for axis in experiment.axes:
         for value in axis.values:
             for method in experiment.methods:
@@ -213,17 +204,9 @@ def tidy_rows(experiment: Experiment, results: dict) -> list[dict]:
                         cell = results.get(test_cell_id(method.name, r))
                         metrics = cell["points"].get(point_key(axis.name, value)) if cell else None
                     if metrics is not None:
-                        rows.append(row(axis.name, value, method.name, r, metrics))
+                        rows.append(tidy.row(experiment.name, axis.name, value_name(value), method.name, r,
+                                             metrics))  # fmt: skip
     return rows
-
-
-def _as_metrics(row: dict) -> dict:
-    """A tidy row as ``stats.summarise_runs`` reads a cell."""
-    out = {"success_rate": row["success"], "collision_rate": row["collision"], "timeout_rate": row["timeout"],
-           "physics_error_rate": 0.0, "spl": row["spl"], "tests": row["tests"]}  # fmt: skip
-    if row["sct"] is not None:
-        out["sct"] = row["sct"]
-    return out
 
 
 def summarise(experiment: Experiment, rows: list[dict]) -> dict:
@@ -244,23 +227,13 @@ def summarise(experiment: Experiment, rows: list[dict]) -> dict:
                 points.append({
                     "axis": axis.name, "value": value_name(value), "method": method.name,
                     "flat": axis.trains and not reads_demonstrations(method, axis),
-                    **summarise_runs([_as_metrics(mine[r]) for r in sorted(mine)]),
+                    **summarise_runs([tidy.as_metrics(mine[r]) for r in sorted(mine)]),
                     "failed": experiment.runs - len(mine),
                     "paired": None if method.name == first else paired(
                         [by_run[first][r]["success"] for r in both], [mine[r]["success"] for r in both]),
                 })  # fmt: skip
     return {"experiment": experiment.name, "description": experiment.description, "quick": experiment.quick,
             "runs": experiment.runs, "tests": experiment.tests, "first": first, "points": points}  # fmt: skip
-
-
-def csv_table(rows: list[dict]) -> str:
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for row in rows:
-        values = [row[k] for k in CSV_COLUMNS]
-        writer.writerow(["" if v is None else (f"{v:.6g}" if isinstance(v, float) else v) for v in values])
-    return buffer.getvalue()
 
 
 def json_line(summary: dict) -> str:
@@ -404,7 +377,7 @@ of the {experiment.test_domain} domain, the same at every point. Tidy rows: `sui
 
 {chr(10).join(sections)}{failed_section(summary)}"""
     write_text(out / "suite.md", text)
-    write_text(out / "suite.csv", csv_table(rows))
+    write_text(out / "suite.csv", tidy.csv_text(rows))
     write_text(out / "results.json", json.dumps({**summary, "rows": rows, "cells_raw": results}, indent=1))
     return [out / "suite.md", out / "suite.csv", *files, out / "results.json"]
 

@@ -1,0 +1,97 @@
+"""Method kinds: how each kind of method trains, and what it hands the protocol.
+
+Every kind is one function ``train(job, train) -> Trained``: the job
+(``nirl_mj.experiments.protocol.RunJob``: the method's settings, its run's demonstrations, seed and
+run directory) in; a policy and every arena seed its training drove or read out. The protocol
+(:func:`nirl_mj.experiments.protocol.policy_of`) treats every kind alike: it checks the seen arenas
+against the run's test arenas and tests the policy. A method from another package
+(``kind = "plugin"``, ``nirl_mj.experiments.plugins``) is one more entry of :data:`KINDS`.
+``train=False`` loads a finished run and never trains (a sweep's tests).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Trained:
+    """A trained method: ``policy(phi) -> action`` (for ``kind = "expert"`` an Agent reading the whole
+    observation) and ``seen``, every arena seed its training drove or read."""
+
+    policy: Any
+    seen: frozenset[int] = frozenset()
+
+
+def _irl(job, train: bool) -> Trained:
+    from nirl_mj.experiments.protocol import ensure_trained, read_finished
+    from nirl_mj.experiments.seeds import seen_seeds
+    from nirl_mj.experiments.training import load_policy
+
+    record = ensure_trained(job) if train else read_finished(job.run_dir)
+    policy, _ = load_policy(job.run_dir)
+    return Trained(policy, frozenset(seen_seeds(record)))
+
+
+def _rl(job, train: bool) -> Trained:
+    from nirl_mj.experiments.rl import ADVERSARIAL, ensure_rl_trained, load_rl_policy
+
+    m = job.method
+    if train:
+        demos = job.demos_path if m.algo in ADVERSARIAL else None
+        ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
+                          m.settings)  # fmt: skip
+    policy, record = load_rl_policy(job.run_dir)
+    return Trained(policy, frozenset(record["train_seeds"]))
+
+
+def _dagger(job, train: bool) -> Trained:
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.experiments.dagger import train_dagger
+    from nirl_mj.learn.bc import CloneSettings
+
+    settings = CloneSettings.of(job.method.variant)
+    policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert,
+                                  settings=settings)  # fmt: skip
+    return Trained(policy, frozenset(arenas))
+
+
+def _bc(job, train: bool) -> Trained:
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.learn.bc import CloneSettings, behaviour_cloning
+
+    settings = CloneSettings.of(job.method.variant)
+    return Trained(behaviour_cloning(load_dataset(job.demos_path), seed=job.seed, settings=settings))
+
+
+def _expert(job, train: bool) -> Trained:
+    from nirl_mj.experiments.demos import ExpertConfig
+
+    return Trained(ExpertConfig.named(job.expert, job.seed).build())
+
+
+def _reference(job, train: bool) -> Trained:
+    from nirl_mj.experts.policies import always_forward, rule_policy
+
+    return Trained({"forward": always_forward, "rule": rule_policy}[job.method.kind])
+
+
+def _plugin(job, train: bool) -> Trained:
+    from nirl_mj.experiments.plugins import train_plugin
+
+    return train_plugin(job)
+
+
+KINDS: dict[str, Callable[[Any, bool], Trained]] = {
+    "irl": _irl,
+    "bc": _bc,
+    "dagger": _dagger,
+    "forward": _reference,
+    "rule": _reference,
+    "rl": _rl,
+    "expert": _expert,
+    "plugin": _plugin,
+}
+"""Every method kind (``definition.METHOD_KINDS``) and how it trains."""

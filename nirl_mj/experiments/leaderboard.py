@@ -1,0 +1,181 @@
+"""``nirl-mj leaderboard DIR...``: the results of several output directories as one table.
+
+Each DIR is the output of ``nirl-mj compare`` or ``nirl-mj suite`` (its ``experiment.json`` and its
+tidy rows: ``rows.csv``, ``suite.csv``, or for a comparison written before ``rows.csv`` existed the
+cells of its ``results.json``). The directories must share the protocol (:data:`PROTOCOL`: the same
+tasks, seeds, tests, test domain, demonstrations and axes, hence the same test arenas run by run);
+a method found in two of them must be the same computation (its identity), and is taken once.
+Outputs in OUT: ``leaderboard.md`` (per point, the methods ranked by average success with its 95 %
+t interval, SPL, SCT, runs and source), ``leaderboard.csv`` (the merged tidy rows) and
+``leaderboard.png`` (the same as bars with their intervals).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.experiments import tidy
+from nirl_mj.experiments.definition import ExperimentError
+from nirl_mj.experiments.stats import summarise_runs
+
+PROTOCOL = ("kind", "task", "test_task", "seed", "tests", "test_domain", "expert", "demos", "demos_per_run",
+            "axes", "config")  # fmt: skip
+"""The identity keys every merged directory must share: what decides each run's test arenas and
+demonstrations (``config`` too: it decides the training arenas the test arenas avoid)."""
+FILES = ("leaderboard.md", "leaderboard.csv", "leaderboard.png")
+
+
+def read_dir(path: str | Path) -> tuple[dict, list[dict]]:
+    """A result directory's identity and tidy rows."""
+    path = Path(path)
+    marker = path / "experiment.json"
+    try:
+        identity = json.loads(marker.read_text())
+    except FileNotFoundError:
+        raise ExperimentError(f"{path}: no experiment.json; give output directories of nirl-mj compare or "
+                              "suite") from None  # fmt: skip
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ExperimentError(f"{marker}: cannot be read ({exc})") from None
+    if not isinstance(identity, dict) or identity.get("kind") not in ("compare", "suite"):
+        raise ExperimentError(f"{marker}: not the identity of a compare or suite experiment")
+    for name in ("rows.csv", "suite.csv"):
+        if (path / name).is_file():
+            try:
+                return identity, tidy.read(path / name)
+            except tidy.TidyError as exc:
+                raise ExperimentError(str(exc)) from None
+    return identity, _rows_of_results(path, identity)
+
+
+def _rows_of_results(path: Path, identity: dict) -> list[dict]:
+    """The tidy rows of a comparison written before ``rows.csv``: its ``results.json`` cells."""
+    try:
+        results = json.loads((path / "results.json").read_text())
+        cells = results["cells"]
+        return [tidy.row(path.name, "", "", c["method"], int(c["run"]), c) for c in cells.values()]
+    except FileNotFoundError:
+        raise ExperimentError(f"{path}: no rows.csv, suite.csv or results.json: run the experiment (or its "
+                              "--report) first") from None  # fmt: skip
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ExperimentError(f"{path / 'results.json'}: its cells cannot be read ({exc!r})") from None
+
+
+def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
+    """The merged tidy rows of ``dirs`` and each method's source directory; refuses directories of
+    another protocol and a method name that means two computations."""
+    if not dirs:
+        raise ExperimentError("leaderboard: give at least one output directory")
+    rows, source, methods = [], {}, {}
+    first_dir, first = None, None
+    for d in dirs:
+        identity, found = read_dir(d)
+        if first is None:
+            first_dir, first = d, identity
+        differ = [k for k in PROTOCOL if identity.get(k) != first.get(k)]
+        if differ:
+            raise ExperimentError(f"{d} and {first_dir} differ in {', '.join(differ)}: their test arenas or "
+                                  "protocol are not the same, so their results do not compare")  # fmt: skip
+        for m in identity.get("methods", []):
+            name = m["name"]
+            if name in methods and methods[name] != m:
+                raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name]} (settings "
+                                      "differ): rename one of them in its experiment file")  # fmt: skip
+            if name in methods:
+                continue  # the same computation: taken from the first directory
+            methods[name], source[name] = m, str(d)
+            rows += [r for r in found if r["method"] == name]
+    return rows, source
+
+
+def points(rows: list[dict]) -> list[dict]:
+    """Per (axis, value, method): the runs' summary (``stats.summarise_runs``), best first per point."""
+    keys = list(dict.fromkeys((r["axis"], r["value"]) for r in rows))
+    out = []
+    for axis, value in keys:
+        here = [r for r in rows if (r["axis"], r["value"]) == (axis, value)]
+        per = []
+        for method in dict.fromkeys(r["method"] for r in here):
+            mine = sorted((r for r in here if r["method"] == method), key=lambda r: r["run"])
+            per.append({"axis": axis, "value": value, "method": method,
+                        **summarise_runs([tidy.as_metrics(r) for r in mine])})  # fmt: skip
+        out += sorted(per, key=lambda p: -p["avg"])
+    return out
+
+
+def markdown(summary: list[dict], source: dict[str, str]) -> str:
+    parts = []
+    for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
+        title = f"## {axis} = {value}\n\n" if axis else ""
+        lines = [
+            "| rank | method | runs | success [95 % CI] | SPL | SCT | from |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)]
+        for rank, p in enumerate(here, start=1):
+            ci = p.get("ci") or [None, None]
+            band = f" [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]" if ci[0] is not None else ""
+            sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
+            success = f"{100 * p['avg']:.1f}{band}"
+            lines.append(f"| {rank} | {p['method']} | {p['runs']} | {success} | {p['spl']:.2f} | "
+                         f"{sct} | `{source[p['method']]}` |")  # fmt: skip
+        parts.append(title + "\n".join(lines))
+    return "\n\n".join(parts)
+
+
+def bar_plot(path: Path, summary: list[dict]) -> Path:
+    """A panel per point: each method's average success with its 95 % interval, best on top."""
+    from nirl_mj.inspect.figures import plt
+
+    groups = list(dict.fromkeys((p["axis"], p["value"]) for p in summary))
+    columns = min(3, len(groups))
+    rows_ = -(-len(groups) // columns)
+    height = max(len([p for p in summary if (p["axis"], p["value"]) == g]) for g in groups)
+    fig, axes = plt.subplots(rows_, columns, figsize=(4.2 * columns, 0.35 * height * rows_ + 1.2), dpi=110,
+                             squeeze=False)  # fmt: skip
+    for k, (axis, value) in enumerate(groups):
+        ax = axes[k // columns][k % columns]
+        here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)][::-1]
+        y = range(len(here))
+        avg = [100 * p["avg"] for p in here]
+        err = [
+            [100 * (p["avg"] - p["ci"][0]) if p.get("ci") and p["ci"][0] is not None else 0 for p in here],
+            [100 * (p["ci"][1] - p["avg"]) if p.get("ci") and p["ci"][1] is not None else 0 for p in here],
+        ]
+        ax.barh(list(y), avg, xerr=err, color="#4c78a8", capsize=3)
+        ax.set_yticks(list(y), [p["method"] for p in here], fontsize=8)
+        ax.set_xlim(0, 100)
+        ax.set_xlabel("success (%)")
+        ax.set_title(f"{axis} = {value}" if axis else "leaderboard", fontsize=9)
+        ax.grid(axis="x", alpha=0.3)
+    for k in range(len(groups), rows_ * columns):
+        axes[k // columns][k % columns].axis("off")
+    fig.tight_layout()
+    write_figure(path, fig)
+    plt.close(fig)
+    return path
+
+
+def write_leaderboard(
+    dirs: list[str | Path], out: str | Path, overwrite: bool = False
+) -> tuple[str, list[Path]]:
+    """Merges ``dirs`` into OUT (module docstring); returns the Markdown table and the files written.
+    OUT must be new, empty, or (with ``overwrite``) an earlier leaderboard's."""
+    rows, source = merge(list(dirs))
+    out = Path(out)
+    if out.exists():
+        held = {p.name for p in out.iterdir()} if out.is_dir() else {"?"}
+        if held - set(FILES):
+            raise ExperimentError(f"{out} holds other files than a leaderboard's; choose another --out")
+        if held and not overwrite:
+            raise ExperimentError(f"{out} holds a leaderboard; pass --overwrite to replace it")
+    out.mkdir(parents=True, exist_ok=True)
+    summary = points(rows)
+    table = markdown(summary, source)
+    write_text(out / "leaderboard.md", f"# Leaderboard\n\nFrom: {', '.join(f'`{d}`' for d in dirs)}. Success "
+               "averaged over each method's runs (95 % Student-t interval); the directories share their "
+               f"protocol and test arenas.\n\n{table}\n\n![leaderboard](leaderboard.png)\n")  # fmt: skip
+    write_text(out / "leaderboard.csv", tidy.csv_text(rows))
+    files = [out / "leaderboard.md", out / "leaderboard.csv", bar_plot(out / "leaderboard.png", summary)]
+    return table, files

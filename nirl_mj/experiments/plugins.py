@@ -1,0 +1,227 @@
+"""Methods from other packages: the ``nirl_mj.methods`` entry point group and its Gymnasium adapter.
+
+A package adds a method by naming an object in its ``pyproject.toml``::
+
+    [project.entry-points."nirl_mj.methods"]
+    KNN = "knn_method:KNN"
+
+``KNN`` is then a method name like ``NIRL`` in every experiment file (``methods = ["NIRL", "KNN"]``)
+and suite. The object (a class, instantiated with the method's ``settings`` as keyword arguments,
+or an instance) has, in plain Python, NumPy and Gymnasium types (docs/EXTENDING.md):
+
+- ``reads``: what it reads, words of ``nirl_mj.experiments.reads.VOCABULARY`` (a learner from
+  demonstrations: ``["demonstrations", "features", "episode_end"]``, or without ``episode_end`` if
+  it never drives the environment);
+- ``observation``: ``"features"`` (phi(s), float32 (16,), as ``gymnasium.make("nirl_mj/Navigate-v0",
+  observation="features")`` gives it);
+- ``train(demonstrations, make_env, budget, seed, workdir) -> policy``: ``demonstrations`` a dict of
+  arrays (``observations`` (N, 16) float32, ``actions`` (N,) int64, ``next_observations`` (N, 16),
+  ``episode`` (N,) int64, ``terminals`` (N,) bool: the episode ended there by arrival or
+  collision); ``make_env()`` a Gymnasium environment on the run's training arenas; ``budget`` the
+  decisions it may drive in all its environments together; ``workdir`` a directory of its own
+  (checkpoints); ``policy(observation) -> action`` in 0..5.
+
+The protocol keeps the rest: the environments draw their arenas from the run's training stream
+(a ``reset(seed=S)`` draws the stream's next arena, as Stable-Baselines3 runs do; a test arena is
+refused), give no reward and no outcome unless ``reads`` says so, and stop at the budget; the
+arenas they drew are checked against the test arenas; the policy is tested by the protocol. A method
+that breaks a rule raises :class:`MethodError`, one line naming the method and the rule, and its
+cell is not retried.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from nirl_mj.experiments.definition import ExperimentError
+from nirl_mj.experiments.kinds import Trained
+
+GROUP = "nirl_mj.methods"
+OBSERVATIONS = ("features",)
+
+
+class MethodError(ExperimentError):
+    """A method broke the protocol's rules (a test arena asked for, the budget exceeded, a policy of
+    the wrong shape, a bad declaration). Deterministic: its cell is not retried."""
+
+
+def discovered() -> dict[str, metadata.EntryPoint]:
+    """Every installed method of the ``nirl_mj.methods`` group, by name."""
+    return {ep.name: ep for ep in metadata.entry_points(group=GROUP)}
+
+
+def version_of(name: str) -> str:
+    """``DISTRIBUTION VERSION`` of the package that provides method ``name`` (in an experiment's
+    identity: another version of a method is another computation)."""
+    ep = discovered().get(name)
+    if ep is None:
+        raise MethodError(f"method {name!r}: no installed package provides it (entry point group {GROUP}; "
+                          f"installed: {', '.join(discovered()) or 'none'})")  # fmt: skip
+    dist = ep.dist
+    return f"{dist.name} {dist.version}" if dist is not None else "unknown"
+
+
+def load_method(name: str, settings: dict | None = None) -> Any:
+    """The method object of entry point ``name``, instantiated with ``settings`` if it is a class;
+    its declarations checked."""
+    ep = discovered().get(name)
+    if ep is None:
+        version_of(name)  # raises, naming what is installed
+    try:
+        target = ep.load()
+    except Exception as exc:  # a broken package: one line naming it
+        raise MethodError(f"method {name!r}: its entry point {ep.value!r} cannot be loaded: "
+                          f"{type(exc).__name__}: {exc}") from None  # fmt: skip
+    try:
+        method = target(**(settings or {})) if isinstance(target, type) else target
+    except TypeError as exc:
+        raise MethodError(f"method {name!r}: settings {settings}: {exc}") from None
+    check_declarations(name, method)
+    return method
+
+
+def check_declarations(name: str, method: Any) -> None:
+    """Refuses a method whose ``reads``, ``observation`` or ``train`` is missing or wrong."""
+    from nirl_mj.experiments.reads import check_words
+
+    reads = getattr(method, "reads", None)
+    if not isinstance(reads, list | tuple) or not all(isinstance(w, str) for w in reads):
+        raise MethodError(f"method {name!r}: declare `reads`, a list of words of "
+                          "nirl_mj.experiments.reads.VOCABULARY (what it reads)")  # fmt: skip
+    try:
+        check_words(list(reads), f"method {name!r}")
+    except ValueError as exc:
+        raise MethodError(str(exc)) from None
+    observation = getattr(method, "observation", None)
+    if observation not in OBSERVATIONS:
+        raise MethodError(
+            f"method {name!r}: observation = {observation!r}: accepted: {', '.join(OBSERVATIONS)}"
+        )
+    if not callable(getattr(method, "train", None)):
+        raise MethodError(
+            f"method {name!r}: it has no train(demonstrations, make_env, budget, seed, workdir)"
+        )
+
+
+def method_reads(name: str, settings: dict | None = None) -> list[str]:
+    """What method ``name`` declares it reads."""
+    return list(load_method(name, settings).reads)
+
+
+def demonstration_arrays(trajectories: list) -> dict[str, np.ndarray]:
+    """The demonstrations as plain arrays (module docstring): one row per decision."""
+    from nirl_mj.data.trajectory import TERMINAL_OUTCOMES
+
+    obs, actions, next_obs, episode, terminals = [], [], [], [], []
+    for i, t in enumerate(trajectories):
+        n = len(t)
+        obs.append(np.asarray(t.features[:n], np.float32))
+        next_obs.append(np.asarray(t.features[1 : n + 1], np.float32))
+        actions.append(np.asarray(t.actions, np.int64))
+        episode.append(np.full(n, i, np.int64))
+        ends = np.zeros(n, bool)
+        if n and t.outcome in TERMINAL_OUTCOMES:
+            ends[-1] = True
+        terminals.append(ends)
+    return {"observations": np.concatenate(obs), "actions": np.concatenate(actions),
+            "next_observations": np.concatenate(next_obs), "episode": np.concatenate(episode),
+            "terminals": np.concatenate(terminals)}  # fmt: skip
+
+
+class _Budget:
+    """The decisions left to all of a method's environments, and the arenas they drew."""
+
+    def __init__(self, name: str, decisions: int, seed: int, test_seeds: frozenset[int]) -> None:
+        from nirl_mj.experiments.seeds import domain_seed
+        from nirl_mj.gym.wrappers import ArenaStream
+
+        self.name, self.left, self.total = name, decisions, decisions
+        self.stream = ArenaStream(functools.partial(domain_seed, "train", seed))
+        self._test_seeds = test_seeds
+
+    def check_seed(self, seed: int | None) -> None:
+        if seed is not None and int(seed) in self._test_seeds:
+            raise MethodError(
+                f"method {self.name!r} asked for arena {seed}, one of its run's test arenas: "
+                "reset() draws the run's training arenas; a method never chooses one"
+            )
+
+    def spend(self) -> None:
+        if self.left <= 0:
+            raise MethodError(f"method {self.name!r} drove more than its budget of {self.total} decisions")
+        self.left -= 1
+
+
+def protocol_env(task, budget: _Budget, reads: tuple[str, ...]):
+    """The Gymnasium environment a method trains in (module docstring)."""
+    import gymnasium
+
+    from nirl_mj.gym.env import NavigationEnv
+    from nirl_mj.gym.wrappers import ArenaSeeds
+
+    class ProtocolEnv(gymnasium.Wrapper):
+        def reset(self, *, seed: int | None = None, options: dict | None = None):
+            budget.check_seed(seed)
+            observation, info = self.env.reset(options=options)  # ArenaSeeds draws from the stream
+            return observation, (info if "task_outcome" in reads else {})
+
+        def step(self, action):
+            budget.spend()
+            observation, reward, terminated, truncated, info = self.env.step(action)
+            if "task_reward" not in reads:
+                reward = 0.0
+            if "task_outcome" not in reads:
+                info = {}
+            return observation, reward, terminated, truncated, info
+
+    env = NavigationEnv(task, observation="features")
+    return ProtocolEnv(ArenaSeeds(env, stream=budget.stream, replace_given=True))
+
+
+def checked_policy(name: str, policy: Any, example: np.ndarray) -> Callable[[np.ndarray], int]:
+    """``policy`` as ``phi -> int``, refused (one line naming the method) unless it answers one
+    observation with one action in 0..5."""
+    from nirl_mj.data.features import N_ACTIONS
+
+    if not callable(policy):
+        raise MethodError(f"method {name!r}: train() returned {type(policy).__name__}, not a policy "
+                          "(a callable observation -> action)")  # fmt: skip
+    answer = np.asarray(policy(example))
+    if (
+        answer.shape not in ((), (1,))
+        or not np.issubdtype(answer.dtype, np.integer)
+        or not (0 <= int(answer.reshape(-1)[0]) < N_ACTIONS)
+    ):
+        raise MethodError(f"method {name!r}: its policy answered an observation of shape {example.shape} "
+                          f"with {answer!r} (shape {answer.shape}); expected one action, an integer in "
+                          f"0..{N_ACTIONS - 1}")  # fmt: skip
+
+    def act(phi: np.ndarray) -> int:
+        return int(np.asarray(policy(np.asarray(phi, np.float32))).reshape(-1)[0])
+
+    return act
+
+
+def train_plugin(job) -> Trained:
+    """Trains the plugin method of ``job`` (``nirl_mj.experiments.kinds``): its demonstrations as
+    arrays, environments on the run's training arenas, its budget and a work directory; never the
+    test arenas."""
+    from nirl_mj.data.dataset import load_dataset
+
+    name = job.method.plugin
+    method = load_method(name, job.method.settings)
+    reads = tuple(method.reads)
+    demos = demonstration_arrays(load_dataset(job.demos_path))
+    budget = _Budget(job.method.name, job.method.steps, job.seed, frozenset(job.test_seeds))
+    workdir = Path(job.run_dir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    policy = method.train(demonstrations=demos, make_env=lambda: protocol_env(job.task, budget, reads),
+                          budget=job.method.steps, seed=job.seed, workdir=str(workdir))  # fmt: skip
+    return Trained(checked_policy(job.method.name, policy, demos["observations"][0]),
+                   frozenset(budget.stream.used))  # fmt: skip

@@ -1,0 +1,212 @@
+"""Methods from other packages (entry point group ``nirl_mj.methods``): found by name, trained through
+the same interface as the built-in ones, held to the protocol's rules, resumed after a kill."""
+
+import csv
+import inspect
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("gymnasium", reason="the plugin adapter's environments need nirl-mj[gym]")
+
+from nirl_mj.cli import main  # noqa: E402
+from nirl_mj.experiments import protocol  # noqa: E402
+from nirl_mj.experiments.definition import METHOD_KINDS, ExperimentError, from_dict  # noqa: E402
+from nirl_mj.experiments.kinds import KINDS  # noqa: E402
+from nirl_mj.experiments.plugins import discovered  # noqa: E402
+from nirl_mj.experiments.reads import method_reads  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+PACKAGE = '''
+"""A throwaway method package: nothing here imports nirl-mj."""
+import numpy as np
+
+
+class Walker:
+    """Drives its environments for a few episodes (recording what it was given), then always
+    answers with the action it was told."""
+
+    reads = ("demonstrations", "features", "episode_end")
+    observation = "features"
+
+    def __init__(self, action=0, episodes=2, arena=None, shape=None):
+        self.action, self.episodes, self.arena, self.shape = action, episodes, arena, shape
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        env = make_env()
+        seen = {"rewards": [], "infos": [], "shape": list(demonstrations["observations"].shape)}
+        for _ in range(self.episodes):
+            obs, info = env.reset(seed=self.arena)
+            seen["infos"].append(info)
+            done = False
+            while not done:
+                obs, reward, terminated, truncated, info = env.step(self.action)
+                seen["rewards"].append(reward)
+                done = terminated or truncated
+        import json, os
+        with open(os.path.join(workdir, "seen.json"), "w") as f:
+            json.dump({**seen, "rewards": sorted(set(seen["rewards"]))}, f)
+        if self.shape:
+            return lambda observation: np.zeros(self.shape, np.int64)
+        return lambda observation: self.action
+
+
+class Silent:
+    observation = "features"
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        return lambda observation: 0
+'''
+
+TINY = """
+[set.arena]
+size = [30.0, 30.0]
+start = [5.0, 5.0]
+target = [25.0, 25.0]
+static_obstacles = 3
+[set.robot]
+drive = "planar"
+[demos]
+episodes = 2
+"""
+
+
+@pytest.fixture
+def installed(tmp_path, monkeypatch):
+    """The throwaway package, installed as pip would install it (a module and its dist-info with the
+    entry points) in a folder on the import path of this process and of every process it starts."""
+    site = tmp_path / "site"
+    (site / "walker_method").mkdir(parents=True)
+    (site / "walker_method" / "__init__.py").write_text(PACKAGE)
+    info = site / "walker_method-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: walker-method\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(
+        "[nirl_mj.methods]\nWalker = walker_method:Walker\nSilent = walker_method:Silent\n"
+    )
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
+    return site
+
+
+def spec(tmp_path: Path, methods: str, extra: str = "") -> Path:
+    path = tmp_path / "exp.toml"
+    path.write_text(f'kind = "compare"\nruns = 2\ntests = 2\nmethods = {methods}\n{extra}{TINY}')
+    return path
+
+
+def compare(path: Path, out: Path, *extra: str) -> list[str]:
+    return ["compare", "--task", str(path), "--out", str(out), "--executor", "serial", "--quiet", *extra]
+
+
+def test_every_kind_trains_through_one_interface_and_the_protocol_special_cases_none():
+    assert set(KINDS) == set(METHOD_KINDS)
+    source = inspect.getsource(protocol)
+    assert ".kind ==" not in source and "kind in (" not in source  # no kind is special-cased there
+
+
+def test_an_installed_method_is_a_method_name_with_what_it_reads(installed, tmp_path, capsys):
+    assert {"Walker", "Silent"} <= set(discovered())
+    experiment = from_dict({"kind": "compare", "methods": ["NIRL", "Walker"]}, "e.toml")
+    walker = experiment.methods[1]
+    assert (walker.kind, walker.plugin) == ("plugin", "Walker")
+    assert method_reads(walker) == ["demonstrations", "features", "episode_end"]
+    identity = experiment.identity()["methods"][1]
+    assert identity["version"] == "walker-method 1.0"  # another version would be another experiment
+
+
+def test_an_installed_method_runs_in_an_experiment_within_the_protocols_rules(installed, tmp_path):
+    path, out = (
+        spec(tmp_path, '["Walker", "rule"]', "[method.Walker]\nsettings = { action = 0 }\n"),
+        tmp_path / "out",
+    )
+    assert main(compare(path, out)) == 0
+    seen = json.loads((out / "runs" / "Walker" / "0" / "seen.json").read_text())
+    assert seen["rewards"] == [0.0] and all(info == {} for info in seen["infos"])  # no reward, no outcome
+    assert seen["shape"][1] == 16
+    with open(out / "table.csv", newline="") as f:
+        rows = {r["method"]: r for r in csv.DictReader(f)}
+    assert rows["Walker"]["runs"] == "2"
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ("{ arena = TEST }", "method 'Walker' asked for arena TEST, one of its run's test arenas"),
+        ("{ shape = 6 }", "method 'Walker': its policy answered an observation of shape (16,) with"),
+        ("{ episodes = 50 }", "method 'Walker' drove more than its budget of 200 decisions"),
+    ],
+)
+def test_a_method_that_breaks_a_rule_fails_once_with_one_line_naming_it(
+    installed, tmp_path, capsys, settings, message
+):
+    from nirl_mj.experiments.definition import load_experiment
+    from nirl_mj.experiments.protocol import run_test_seeds
+
+    probe = load_experiment(spec(tmp_path, '["Walker"]'))
+    test_arena = run_test_seeds(probe, 0, set())[0]
+    settings, message = settings.replace("TEST", str(test_arena)), message.replace("TEST", str(test_arena))
+    path = spec(tmp_path, '["Walker"]', f"[method.Walker]\nsteps = 200\nsettings = {settings}\n")
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "(1 attempt(s))" in failed[0] and message in failed[0]
+
+
+def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):
+    with pytest.raises(ExperimentError, match="method 'Silent': declare `reads`"):
+        from_dict({"kind": "compare", "methods": ["Silent"]}, "e.toml")
+    with pytest.raises(ExperimentError, match="unknown method 'Nobody'; .* installed .*Walker"):
+        from_dict({"kind": "compare", "methods": ["Nobody"]}, "e.toml")
+    with pytest.raises(ExperimentError, match="settings {'speed': 3}: .*unexpected keyword"):
+        walker = {"Walker": {"settings": {"speed": 3}}}
+        from_dict({"kind": "compare", "methods": ["Walker"], "method": walker}, "e.toml")
+
+
+def test_an_installed_method_resumes_after_a_kill(installed, tmp_path):
+    path = spec(tmp_path, '["Walker", "rule"]', "[method.Walker]\nsettings = { episodes = 4 }\n")
+    reference = tmp_path / "reference"
+    assert main(compare(path, reference)) == 0
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "nirl_mj.cli", *compare(path, out)]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 180
+    while len(list((out / "cells").glob("*.json"))) < 1 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert 1 <= len(before) < 4, "the comparison was not killed part-way"
+    assert main(compare(path, out)) == 0
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    assert {name: after[name] for name in before} == before
+
+    def results(d: Path) -> dict:
+        return {p.stem: json.loads(p.read_text())["result"] for p in (d / "cells").glob("*.json")}
+
+    assert results(out) == results(reference)
+
+
+def test_the_example_package_is_a_method_outside_nirl_mj():
+    source = (ROOT / "examples" / "knn_method" / "knn_method" / "__init__.py").read_text()
+    assert "nirl_mj" not in source.replace("nirl-mj", "")  # written against NumPy alone
+    sys.path.insert(0, str(ROOT / "examples" / "knn_method"))
+    try:
+        from knn_method import KNN
+    finally:
+        sys.path.pop(0)
+    import numpy as np
+
+    demos = {"observations": np.array([[0.0] * 16, [5.0] * 16, [5.1] * 16], np.float32),
+             "actions": np.array([1, 4, 4])}  # fmt: skip
+    policy = KNN(k=1).train(demos, None, 0, 0, "")
+    assert policy(np.full(16, 4.9, np.float32)) == 4 and policy(np.zeros(16, np.float32)) == 1
+    assert KNN(k=3).train(demos, None, 0, 0, "")(np.zeros(16, np.float32)) == 4  # majority of 3
+    assert textwrap.dedent(KNN.__doc__ or "")
