@@ -15,6 +15,7 @@ import nirl_mj  # noqa: E402  (registers the ids)
 from nirl_mj.gym.registration import env_id, task_names  # noqa: E402
 from nirl_mj.sim.episode import run_episode  # noqa: E402
 from nirl_mj.sim.observations import NAMES  # noqa: E402
+from nirl_mj.sim.spec import SpecError  # noqa: E402
 
 SMALL = ["arena.size=[24.0, 24.0]", "arena.start=[4.0, 4.0]", "arena.target=[20.0, 20.0]",
          "arena.static_obstacles=3", "arena.clear_radius=3.0", 'robot.drive="planar"']  # fmt: skip
@@ -237,3 +238,26 @@ def test_the_rule_and_ppo_drive_with_continuous_actions():
     model.learn(64)
     action, _ = model.predict(env.reset(seed=1)[0], deterministic=True)
     assert action.shape == (2,) and env.action_space.contains(action.astype(np.float32))
+
+
+# -- the edges a user hit (issue 33), each written as the user called it ------------------------------
+
+
+def test_stepping_after_the_end_says_to_reset_instead_of_a_type_error():
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.step_budget=1"]).unwrapped
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        env.step(0)
+    env.reset(seed=0)
+    assert env.step(0)[3] is True  # truncated by the budget
+    with pytest.raises(RuntimeError, match=r"after the episode ended .*: call reset\(\) first"):
+        env.step(0)
+    env.reset(seed=1)
+    env.step(0)  # a new episode steps again
+
+
+def test_the_readme_example_task_path_works_from_another_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    env = gymnasium.make("nirl_mj/Navigate-v0", task="tasks/dynamic.toml", set=["control.speed=3"])
+    assert env.unwrapped.task_spec.arena.moving_obstacles > 0 and env.unwrapped.task_spec.control.speed == 3.0
+    with pytest.raises(SpecError, match="task file not found: tasks/nowhere.toml"):
+        gymnasium.make("nirl_mj/Navigate-v0", task="tasks/nowhere.toml")

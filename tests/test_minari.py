@@ -80,3 +80,14 @@ def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys):
     assert main(["train", "--demos", "minari:nirl_mj/navigate/none-v0", "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert "no local Minari dataset 'nirl_mj/navigate/none-v0'" in err and ID in err
+
+
+def test_gail_takes_a_minari_id_as_train_does(exported, tmp_path):
+    """issue 33: `rl --algo gail --demos minari:ID` was refused although `train` accepted the same id."""
+    pytest.importorskip("stable_baselines3")
+    run = tmp_path / "gail"
+    assert main(["rl", "--algo", "gail", "--demos", f"minari:{ID}", "--steps", "1024", "--envs", "1",
+                 "--out", str(run), "--quiet", *SMALL]) == 0  # fmt: skip
+    record = json.loads((run / "run.json").read_text())
+    assert record["demos"] == f"minari:{ID}"
+    assert record["demo_seeds"] == sorted(t.arena_seed for t in load_dataset(exported))

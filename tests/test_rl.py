@@ -290,3 +290,20 @@ def test_a_resume_scores_on_with_its_success_window_and_a_legacy_run_resumes_fro
     args = ["rl", "--algo", "ppo", "--steps", "2048", "--out", str(legacy), "--resume", "--quiet"]
     assert main(args) == 0
     assert "selection" not in json.loads((legacy / "run.json").read_text())["config"]
+
+
+def test_a_saved_model_drives_the_documented_features_environment_through_its_loader(tmp_path):
+    """issue 33: PPO.load(model.zip) on observation="features" scored 0 %: the model acts on phi(s)
+    scaled by its bounds. load_rl_policy applies that scaling; the raw PPO.load does not."""
+    import gymnasium
+
+    from nirl_mj.experiments.rl import load_rl_policy, scaled
+
+    run = tmp_path / "dqn"
+    assert main(["rl", "--algo", "dqn", "--steps", "64", "--out", str(run), "--quiet", *SMALL]) == 0
+    policy, _ = load_rl_policy(run)
+    model = sb3.DQN.load(run / "model.zip", device="cpu")
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=GYM_SMALL, observation="features")
+    obs, _ = env.reset(seed=0)
+    assert policy(obs) == int(model.predict(scaled(obs), deterministic=True)[0])
+    assert obs.max() > 1.0 and scaled(obs).max() <= 1.0  # the raw observation is not what the model reads

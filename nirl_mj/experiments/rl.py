@@ -248,10 +248,10 @@ def train_rl(
         raise ValueError(f"{algo} imitates demonstrations: give --demos (a dataset)")
     trajectories = []
     if adversarial:
-        from nirl_mj.data.dataset import load_dataset
         from nirl_mj.experiments import adversarial as adv
+        from nirl_mj.experiments.training import load_demonstrations
 
-        trajectories = load_dataset(demos)
+        trajectories = load_demonstrations(demos)  # a dataset file or minari:ID, as train reads
         config["discriminator"] = adv.variant_of(algo).settings()
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,

@@ -74,6 +74,7 @@ class NavigationEnv(gymnasium.Env):
         if camera not in CAMERAS:
             raise SpecError(f"camera={camera!r}: accepted: {', '.join(CAMERAS)}")
         self._keys, self._single = _observation_keys(observation)
+        self._ended: bool | None = None  # None: no episode yet
         self._env = make_env(spec)
         self.task_spec = spec
         self.render_mode, self._frame = render_mode, (height, width, camera)
@@ -104,10 +105,18 @@ class NavigationEnv(gymnasium.Env):
         if seed is not None:
             env.random_state.seed(seed)  # composer's own stream: the arena of arena seed `seed`
         timestep = env.reset()
+        self._ended = False
         return self._observation(timestep.observation), self._info(timestep.observation)
 
     def step(self, action):
+        if self._ended is not False:
+            raise RuntimeError(
+                "step() before reset()"
+                if self._ended is None
+                else "step() after the episode ended (terminated or truncated): call reset() first"
+            )
         timestep = self.dm_env.step(action)
+        self._ended = timestep.last()
         last = timestep.last()
         terminated = bool(last and timestep.discount == 0.0)
         observation = timestep.observation

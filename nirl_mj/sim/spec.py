@@ -380,10 +380,15 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> TaskSpec:
 
 
 def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
-    """Returns the spec for a task name under ``tasks/``, a TOML path, or a spec object."""
+    """Returns the spec for a task name under ``tasks/``, a TOML path (a relative one not found
+    from the working directory is looked up in the checkout: ``"tasks/dynamic.toml"`` works from
+    anywhere), or a spec object."""
     if isinstance(task, TaskSpec):
         return task
     path = Path(task)
+    if path.suffix == ".toml" and not path.is_absolute() and not path.is_file():
+        shipped = TASKS_DIR.parent / path  # "tasks/dynamic.toml" works from any directory too
+        path = shipped if shipped.is_file() else path
     if path.suffix != ".toml":
         named = TASKS_DIR / f"{task}.toml"
         if not named.is_file():
