@@ -37,6 +37,7 @@ from nirl_mj.experiments.protocol import (
     evaluate_policy,
     failed_section,
     failure_rows,
+    one_writer,
     policy_of,
     prepare,
 )
@@ -55,6 +56,7 @@ def cell_id(method: str, run: int) -> str:
     return f"{method}-run{run:03d}"
 
 
+@one_writer
 def run_compare(
     experiment: Experiment,
     out: str | Path,

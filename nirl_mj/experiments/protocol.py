@@ -32,6 +32,24 @@ from nirl_mj.sim.spec import TaskSpec
 EXPERIMENT_FILE = "experiment.json"
 
 
+def one_writer(runner: Callable) -> Callable:
+    """Decorates an experiment's runner ``(experiment, out, execution, ...)``: it runs holding the lock
+    on OUT (``nirl_mj.data.lock``), so a second command writing the same OUT is refused with one line
+    naming the first one's process; a ``--report`` (it writes only its tables) takes none."""
+    import functools
+
+    @functools.wraps(runner)
+    def locked(experiment: Experiment, out: str | Path, execution: Execution | None = None, *args, **kwargs):
+        from nirl_mj.data.lock import DirectoryLock
+
+        if execution is not None and execution.report_only:
+            return runner(experiment, out, execution, *args, **kwargs)
+        with DirectoryLock(out, f"{experiment.kind}"):
+            return runner(experiment, out, execution, *args, **kwargs)
+
+    return locked
+
+
 def open_output(out: str | Path, experiment: Experiment) -> Path:
     """Creates OUT for ``experiment``, or re-opens it to resume the same experiment.
 
@@ -304,7 +322,7 @@ class Execution:
             raise ExperimentError(
                 f"--report: {out} holds no started experiment; run it first (without --report)"
             )
-        if not any((Path(out) / name).exists() for name in ("demos.npz", "demos")):
+        if not any((Path(out) / name).exists() for name in ("demos.npz", "demos", "points")):
             raise ExperimentError(
                 f"--report: {out} is still collecting its demonstrations; no cell has finished"
             )

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import (
     MODEL_FILE,
     POLICIES,
@@ -207,6 +208,7 @@ def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
     return score
 
 
+@writes("training")  # one writer at a time
 def train_rl(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
@@ -228,7 +230,7 @@ def train_rl(
     PPO (:func:`tuned`). A resume given no ``selection`` (or ``envs`` None) takes the run's own.
 
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
-    100 training episodes)."""
+    100 training episodes). One writer at a time (``nirl_mj.data.lock``)."""
     cls = _algorithm(algo)
     if algo == "dqn" and task.control.actions != "discrete":
         raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")

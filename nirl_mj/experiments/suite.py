@@ -42,6 +42,7 @@ from nirl_mj.experiments.protocol import (
     evaluate_policy,
     failed_section,
     failure_rows,
+    one_writer,
     open_output,
     policy_of,
     run_jobs,
@@ -96,6 +97,7 @@ def transfer_cell(job: RunJob, points: list[tuple[str, TaskSpec]]) -> dict:
                        for key, task in points}}  # fmt: skip
 
 
+@one_writer
 def run_suite(
     experiment: Experiment,
     out: str | Path,

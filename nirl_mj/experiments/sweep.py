@@ -33,6 +33,7 @@ from nirl_mj.experiments.protocol import (
     evaluate_policy,
     failed_section,
     failure_rows,
+    one_writer,
     policy_of,
     prepare,
 )
@@ -66,6 +67,7 @@ def eval_id(method: str, run: int, obstacles: int, speed: float) -> str:
     return f"{method}-run{run:03d}-n{obstacles:03d}-v{speed:g}"
 
 
+@one_writer
 def run_sweep(
     experiment: Experiment,
     out: str | Path,

@@ -21,6 +21,7 @@ import dm_env
 import numpy as np
 
 from nirl_mj.data.dataset import dataset_digest, load_dataset
+from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
@@ -103,6 +104,7 @@ def _rollouts(env: dm_env.Environment) -> Callable[[Agent, Sequence[int]], list[
     return lambda agent, seeds: [run_episode(env, agent, s) for s in seeds]
 
 
+@writes("training")
 def train(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
@@ -112,8 +114,12 @@ def train(
     resume: bool = False,
     on_metrics: Callable[[Metrics], None] | None = None,
 ) -> dict:
-    """Trains (or resumes) the configured method in ``run_dir``; returns the run record."""
+    """Trains (or resumes) the configured method in ``run_dir``; returns the run record. One writer at
+    a time (``nirl_mj.data.lock``); a resume checks the whole checkpoint and its agreement with the
+    record and the metrics before it changes anything."""
     run = RunDir(run_dir)
+    if run.path.is_dir():
+        run.remove_leftovers()  # a killed process's temporary files (we hold the lock: no writer runs)
     demos = load_demonstrations(demos_path)
     minari = str(demos_path).startswith(MINARI)
     record = {
@@ -153,11 +159,43 @@ def train(
 
     learner = IrlLoop(config, demos, seed)
     if resume:
-        learner.load_state(run.read_checkpoint())
+        state = run.read_checkpoint()
+        try:
+            learner.load_state(state)
+        except (ValueError, KeyError, TypeError) as exc:
+            raise RunError(f"{run.file(CHECKPOINT_FILE)} cannot be resumed: {exc}; the run is left as it "
+                           "is: train it again in another --out") from None  # fmt: skip
+        rows = run.iterations_done()
+        if rows < learner.iteration:
+            raise RunError(
+                f"{run.file(METRICS_FILE)} holds {rows} rows but the checkpoint is at iteration "
+                f"{learner.iteration}; the run is left as it is: train it again in another --out"
+            )
         run.keep_metrics(learner.iteration)  # a crash may have written one row past the checkpoint
     else:
         run.write_record(record)
         run.start_metrics()
+    try:
+        return _iterate(run, learner, config, task, seed, record, on_metrics)
+    except Exception:
+        # failed before its first iteration (an arena that cannot be built...): leave no half-started
+        # run that would block the same --out (an interrupted one stays, for --resume)
+        if not run.has_checkpoint:
+            for name in (RUN_FILE, METRICS_FILE):
+                run.file(name).unlink(missing_ok=True)
+        raise
+
+
+def _iterate(
+    run: RunDir,
+    learner: IrlLoop,
+    config: LearnerConfig,
+    task: specs.TaskSpec,
+    seed: int,
+    record: dict,
+    on_metrics: Callable[[Metrics], None] | None,
+) -> dict:
+    """The iterations left, the selection and the final files."""
     loop = config.loop
     env = make_env(specs.replace(task, robot={"drive": loop.train_drive}))
     first_round = record["validation_seeds"][: loop.validation_arenas]

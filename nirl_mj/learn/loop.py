@@ -330,7 +330,47 @@ class IrlLoop:
             state |= {f"reward_step_{k}": v for k, v in self.reward_step.state().items()}
         return state
 
+    def check_state(self, state: dict[str, np.ndarray]) -> None:
+        """Refuses (ValueError naming the field) a checkpoint this loop cannot continue from: a field
+        missing, of another shape or type, not finite, or an iteration outside 0..episodes, so that
+        a resume never trains on (and writes out) a damaged state."""
+
+        def field(name: str) -> np.ndarray:
+            if name not in state:
+                raise ValueError(f"{name}: missing")
+            return np.asarray(state[name])
+
+        def finite(name: str, value: np.ndarray, shape: tuple) -> None:
+            if value.shape != shape:
+                raise ValueError(f"{name}: shape {value.shape}, expected {shape}")
+            if not np.issubdtype(value.dtype, np.number) or not np.all(np.isfinite(value)):
+                raise ValueError(f"{name}: not all finite numbers")
+
+        iteration = field("iteration")
+        if iteration.shape != () or not np.issubdtype(iteration.dtype, np.integer):
+            raise ValueError(f"iteration: {iteration!r} is not a whole number")
+        n = int(iteration)
+        if not 0 <= n <= self.loop.episodes:
+            raise ValueError(f"iteration = {n}: outside 0..{self.loop.episodes} (the run's episodes)")
+        finite("theta", field("theta"), self.theta.shape)
+        finite("scores", field("scores"), (n,))
+        finite("thetas", field("thetas"), (n, self.theta.size))
+        for name, weights in network.get_weights(self.net).items():
+            finite(f"net_{name}", field(f"net_{name}"), weights.shape)
+            if n:
+                finite(f"kept_{name}", field(f"kept_{name}"), (n, *weights.shape))
+        sizes = field("replay_sizes")
+        if sizes.ndim != 1 or not np.issubdtype(sizes.dtype, np.integer) or np.any(sizes < 0):
+            raise ValueError("replay_sizes: not a list of counts")
+        try:
+            json.loads(str(field("rng")))
+            bool(field("stopped"))
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"rng or stopped: unreadable ({exc})") from None
+
     def load_state(self, state: dict[str, np.ndarray]) -> None:
+        """Continues from ``state`` (:meth:`state`), checked first (:meth:`check_state`)."""
+        self.check_state(state)
         self.iteration = int(state["iteration"])
         self.theta = np.array(state["theta"], dtype=np.float64)
         self.rng.bit_generator.state = json.loads(str(state["rng"]))

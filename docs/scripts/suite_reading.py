@@ -1,0 +1,126 @@
+"""The reading of the suites (docs/RESULTS.md, "Suites"), rendered from their stored tidy rows.
+
+Answers, from docs/results/suites/{demos,quality,transfer}.csv (or the files given), with paired
+95 % t intervals over the runs (a run's test arenas are the same at every point and for every
+method):
+
+- from how few demonstrations each learner reaches 90 % of its own 30-demonstration success;
+- how much of its clean-demonstration success each keeps with each flawed demonstrator;
+- how much of the sensor expert's success each keeps where it was never trained;
+- where the first learner (NIRL) and behaviour cloning differ, paired.
+
+    python docs/scripts/suite_reading.py [DIR]     (DIR: where the CSVs are, default docs/results/suites)
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from nirl_mj.experiments.stats import paired
+from nirl_mj.experiments.tidy import read
+
+REFERENCES = ("expert", "rule", "forward", "PPO-reward", "DAgger")
+LEARNER, CLONE = "NIRL", "BC"
+
+
+def success(rows: list[dict], axis: str, value: str, method: str) -> dict[int, float]:
+    return {
+        r["run"]: r["success"] for r in rows if (r["axis"], r["value"], r["method"]) == (axis, value, method)
+    }
+
+
+def mean(by_run: dict[int, float]) -> float:
+    return sum(by_run.values()) / len(by_run) if by_run else float("nan")
+
+
+def interval(a: dict[int, float], b: dict[int, float]) -> str:
+    """a - b paired by run: mean [95 % interval] in points, over the runs both have."""
+    runs = sorted(set(a) & set(b))
+    if len(runs) < 2:
+        return f"{100 * (mean(a) - mean(b)):+.1f} (n = {len(runs)})"
+    d = paired([a[r] for r in runs], [b[r] for r in runs])
+    return f"{100 * d['mean']:+.1f} [{100 * d['ci'][0]:+.1f}, {100 * d['ci'][1]:+.1f}] (n = {len(runs)})"
+
+
+def values(rows: list[dict], axis: str) -> list[str]:
+    return list(dict.fromkeys(r["value"] for r in rows if r["axis"] == axis))
+
+
+def learners(rows: list[dict]) -> list[str]:
+    return [m for m in dict.fromkeys(r["method"] for r in rows) if m not in REFERENCES]
+
+
+def demos_reading(rows: list[dict]) -> list[str]:
+    out = ["### Number of demonstrations", "",
+           "| method | 30-demonstration success | 90 % of it first reached at | 3 minus 30 demonstrations |",
+           "|---|---|---|---|"]  # fmt: skip
+    for m in learners(rows):
+        full = success(rows, "demonstrations", "30", m)
+        if not full:
+            continue
+        reached = next((v for v in values(rows, "demonstrations")
+                        if mean(success(rows, "demonstrations", v, m)) >= 0.9 * mean(full)), "-")  # fmt: skip
+        three = success(rows, "demonstrations", "3", m)
+        out.append(f"| {m} | {100 * mean(full):.1f} | {reached} | {interval(three, full)} |")
+    return out
+
+
+def quality_reading(rows: list[dict]) -> list[str]:
+    flawed = [v for v in values(rows, "demonstrator") if v != "sensor"]
+    out = ["### Demonstrator", "", "Success with each demonstrator as a share of the success with the clean "
+           "sensor expert (the demonstrator's own success in the `expert` row):", "",
+           "| method | " + " | ".join(flawed) + " |", "|---|" + "---|" * len(flawed)]  # fmt: skip
+    for m in [*learners(rows), "expert"]:
+        clean = mean(success(rows, "demonstrator", "sensor", m))
+        cells = []
+        for v in flawed:
+            s = success(rows, "demonstrator", v, m)
+            cells.append(f"{100 * mean(s) / clean:.0f} %" if s and clean > 0 else "-")
+        out.append(f"| {m} | " + " | ".join(cells) + " |")
+    return out
+
+
+def transfer_reading(rows: list[dict]) -> list[str]:
+    points = [(a, v) for a in dict.fromkeys(r["axis"] for r in rows) for v in values(rows, a)]
+    out = [
+        "### Undemonstrated states",
+        "",
+        "Success as a share of the sensor expert's on the same arenas:",
+        "",
+        "| method | " + " | ".join(f"{a} = {v}" for a, v in points) + " |",
+        "|---|" + "---|" * len(points),
+    ]
+    for m in learners(rows):
+        cells = []
+        for a, v in points:
+            expert, s = mean(success(rows, a, v, "expert")), success(rows, a, v, m)
+            cells.append(f"{100 * mean(s) / expert:.0f} %" if s and expert > 0 else "-")
+        out.append(f"| {m} | " + " | ".join(cells) + " |")
+    return out
+
+
+def versus_clone(name: str, rows: list[dict]) -> list[str]:
+    out = [f"{LEARNER} minus {CLONE} ({name}), paired by run, points [95 % interval]:", ""]
+    for axis in dict.fromkeys(r["axis"] for r in rows):
+        for v in values(rows, axis):
+            a, b = success(rows, axis, v, LEARNER), success(rows, axis, v, CLONE)
+            if a and b:
+                out.append(f"- {axis} = {v}: {interval(a, b)}")
+    return [*out, ""]
+
+
+def main() -> None:
+    folder = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).parents[1] / "results" / "suites")
+    readers = {"demos": demos_reading, "quality": quality_reading, "transfer": transfer_reading}
+    for name, reading in readers.items():
+        path = folder / f"{name}.csv"
+        if not path.is_file():
+            print(f"({path}: not computed yet)\n")
+            continue
+        rows = read(path)
+        print("\n".join([*reading(rows), "", *versus_clone(name, rows)]))
+
+
+if __name__ == "__main__":
+    main()

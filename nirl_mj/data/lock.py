@@ -1,0 +1,75 @@
+"""One writer per output directory: an advisory lock beside it.
+
+``with DirectoryLock(path, what):`` holds an exclusive ``flock`` on ``.NAME.lock`` in the parent
+of ``path`` (beside the directory, so that the directory's own contents stay what its commands
+write), with the holder's process id in it. A second writer is refused at once with one line
+naming that process. The operating system releases the lock when its process ends, however it
+ends (kill -9 too), so a lock left by a dead process is simply taken over.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import functools
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+
+class LockedError(RuntimeError):
+    """Another live process is writing the directory."""
+
+
+class DirectoryLock:
+    """An exclusive lock on writing ``path`` (a directory, or a file such as a dataset)."""
+
+    def __init__(self, path: str | os.PathLike, what: str = "output") -> None:
+        self.path = Path(path).resolve()
+        self.what = what
+        self.lock_file = self.path.parent / f".{self.path.name}.lock"
+        self._fd: int | None = None
+
+    def acquire(self) -> DirectoryLock:
+        self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise LockedError(
+                f"{self.path} is being written by process {holder} (another nirl-mj "
+                f"{self.what}); wait for it to end, or choose another output"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        if self._fd is not None:
+            os.ftruncate(self._fd, 0)
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> DirectoryLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def writes(what: str) -> Callable[[Callable], Callable]:
+    """Decorates a function whose first argument is the directory it writes: it runs holding that
+    directory's :class:`DirectoryLock` (``what`` names the command in the refusal)."""
+
+    def decorate(fn: Callable) -> Callable:
+        @functools.wraps(fn)
+        def locked(path: str | os.PathLike, *args, **kwargs):
+            with DirectoryLock(path, what):
+                return fn(path, *args, **kwargs)
+
+        return locked
+
+    return decorate

@@ -1,0 +1,202 @@
+"""Files that cannot be corrupted (issue 34): a resume checks the checkpoint before it writes
+anything, one writer per directory, no stuck directories. Each defect of the issue is reproduced
+from the user's side."""
+
+from __future__ import annotations
+
+import hashlib
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from nirl_mj.cli import main
+from nirl_mj.data.atomic import write_npz
+from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, POLICY_FILE, RUN_FILE
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ["--set", "robot.drive=planar", "--set", "control.step_budget=8"]
+LEARNER = ["--config", "trajectories_per_episode=2", "--config", "validation_arenas=2",
+           "--config", "replay_episodes=2"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def demos(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("demos") / "d.npz"
+    assert main(["demos", "--expert", "rule", "--episodes", "2", "--seed", "0", "--workers", "1", "--quiet",
+                 "--out", str(path), *TINY]) == 0  # fmt: skip
+    return path
+
+
+def train_args(demos: Path, run: Path, *extra: str) -> list[str]:
+    return ["train", "--demos", str(demos), "--out", str(run), "--episodes", "3", "--quiet", *TINY, *LEARNER,
+            *extra]  # fmt: skip
+
+
+def resume_args(demos: Path, run: Path) -> list[str]:
+    return ["train", "--demos", str(demos), "--out", str(run), "--resume", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def finished(demos, tmp_path_factory) -> Path:
+    run = tmp_path_factory.mktemp("finished") / "run"
+    assert main(train_args(demos, run)) == 0
+    return run
+
+
+def digests(run: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(run.iterdir()) if p.is_file()}
+
+
+def copy_of(run: Path, tmp_path: Path) -> Path:
+    import shutil
+
+    target = tmp_path / "copy"
+    shutil.copytree(run, target)
+    return target
+
+
+def damaged(run: Path, **changes) -> None:
+    with np.load(run / CHECKPOINT_FILE) as data:
+        state = {k: data[k] for k in data.files}
+    for key, value in changes.items():
+        state[key] = value(state[key]) if callable(value) else value
+    write_npz(run / CHECKPOINT_FILE, state)
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        ({"net_W1": lambda w: np.where(np.arange(w.size).reshape(w.shape) == 0, np.nan, w)},
+         "net_W1: not all finite numbers"),
+        ({"iteration": np.array(10**6)}, "iteration = 1000000: outside 0..3"),
+        ({"iteration": np.array(-3)}, "iteration = -3: outside 0..3"),
+        ({"theta": lambda t: t[:-1]}, "theta: shape"),
+        ({"scores": np.array([0.5, 0.5])}, "scores: shape (2,), expected (3,)"),
+        ({"iteration": np.array(2.5)}, "iteration: array(2.5) is not a whole number"),
+    ],
+)  # fmt: skip
+def test_a_resume_from_a_damaged_checkpoint_is_refused_and_changes_nothing(
+    finished, demos, tmp_path, capsys, change, needle
+):
+    run = copy_of(finished, tmp_path)
+    damaged(run, **change)
+    before = digests(run)
+    assert main(resume_args(demos, run)) == 2
+    err = capsys.readouterr().err
+    assert f"{CHECKPOINT_FILE} cannot be resumed: {needle}" in err and "Traceback" not in err
+    assert digests(run) == before  # policy.npz, run.json and metrics.jsonl untouched
+
+
+def test_a_checkpoint_ahead_of_its_metrics_is_refused_before_the_metrics_are_cut(
+    finished, demos, tmp_path, capsys
+):
+    run = copy_of(finished, tmp_path)
+    lines = (run / METRICS_FILE).read_text().splitlines(keepends=True)
+    (run / METRICS_FILE).write_text("".join(lines[:1]))
+    before = digests(run)
+    assert main(resume_args(demos, run)) == 2
+    assert "holds 1 rows but the checkpoint is at iteration 3" in capsys.readouterr().err
+    assert digests(run) == before
+
+
+def test_a_directory_holding_only_a_killed_writes_temporary_file_trains_afresh(demos, tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / f".{RUN_FILE}.1a2b3c4d.tmp").write_text('{"half": ')  # the first write of run.json, killed
+    assert main(train_args(demos, run)) == 0
+    assert (run / POLICY_FILE).is_file() and not list(run.glob(".*tmp*"))
+
+
+def test_a_training_that_fails_before_its_first_iteration_leaves_its_output_usable(demos, tmp_path, capsys):
+    run = tmp_path / "run"
+    crowded = ["--set", "arena.static_obstacles=900", "--set", "arena.obstacle_size=[6.0, 8.0]"]
+    assert main(train_args(demos, run, *crowded)) == 2  # valid values; no arena can be built of them
+    assert "could not generate a solvable arena" in capsys.readouterr().err
+    assert not (run / RUN_FILE).exists()  # nothing left that would block the same --out
+    assert main(train_args(demos, run)) == 0
+
+
+def hold(path: Path, tmp_path: Path) -> tuple[subprocess.Popen, int]:
+    """Another process holding the write lock of ``path``; returns it and its pid."""
+    ready = tmp_path / "ready"
+    script = ("import sys, time; from pathlib import Path\n"
+              "from nirl_mj.data.lock import DirectoryLock\n"
+              f"lock = DirectoryLock({str(path)!r}).acquire(); Path({str(ready)!r}).write_text('1')\n"
+              "time.sleep(600)\n")  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT)
+    deadline = time.monotonic() + 60
+    while not ready.exists():
+        assert time.monotonic() < deadline and process.poll() is None, "the holder did not start"
+        time.sleep(0.02)
+    return process, process.pid
+
+
+def test_two_writers_of_one_run_or_experiment_the_second_is_refused_every_time(demos, tmp_path, capsys):
+    run, out = tmp_path / "run", tmp_path / "exp"
+    spec = tmp_path / "e.toml"
+    spec.write_text(
+        'kind = "compare"\nruns = 1\ntests = 1\nmethods = ["rule"]\n[set.robot]\ndrive = "planar"\n'
+    )
+    for target, argv in ((run, train_args(demos, run)),
+                         (out, ["compare", "--task", str(spec), "--out", str(out), "--quiet"])):  # fmt: skip
+        process, pid = hold(target, tmp_path)
+        try:
+            for _ in range(3):
+                assert main(argv) == 2
+                err = capsys.readouterr().err.strip().splitlines()
+                assert len(err) == 1 and f"is being written by process {pid}" in err[0]
+        finally:
+            process.send_signal(signal.SIGKILL)  # dies holding the lock: the OS releases it
+            process.wait()
+        (tmp_path / "ready").unlink()
+        assert main(argv) == 0  # taken over from the dead holder
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet", "--report"]) == 0
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_damage_to_a_checkpoint_is_refused_or_resumed_never_a_traceback(
+    finished, demos, tmp_path_factory, data
+):
+    """Random truncation, byte flips, NaN/inf, wrong dtypes and shapes of the checkpoint: a resume
+    either refuses with one line (the run unchanged) or resumes a state it can continue."""
+    run = copy_of(finished, tmp_path_factory.mktemp("hyp"))
+    path = run / CHECKPOINT_FILE
+    kind = data.draw(st.sampled_from(["truncate", "flip", "nan", "dtype", "shape"]))
+    if kind in ("truncate", "flip"):
+        raw = bytearray(path.read_bytes())
+        at = data.draw(st.integers(0, len(raw) - 1))
+        if kind == "truncate":
+            raw = raw[:at]
+        else:
+            raw[at] ^= data.draw(st.integers(1, 255))
+        path.write_bytes(bytes(raw))
+    else:
+        with np.load(path) as npz:
+            state = {k: npz[k] for k in npz.files}
+        key = data.draw(
+            st.sampled_from(sorted(k for k in state if state[k].dtype.kind == "f" and state[k].size))
+        )
+        value = state[key]
+        if kind == "nan":
+            value = value.copy()
+            value.reshape(-1)[data.draw(st.integers(0, value.size - 1))] = data.draw(
+                st.sampled_from([np.nan, np.inf, -np.inf]))  # fmt: skip
+        elif kind == "dtype":
+            value = value.astype(np.str_)
+        else:
+            value = value.reshape(-1)[:-1] if value.size > 1 else np.zeros((2, 2))
+        state[key] = value
+        write_npz(path, state)
+    before = digests(run)
+    code = main(resume_args(demos, run))
+    assert code in (0, 2)
+    if code == 2:
+        assert digests(run) == before
