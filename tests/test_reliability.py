@@ -200,3 +200,72 @@ def test_any_damage_to_a_checkpoint_is_refused_or_resumed_never_a_traceback(
     assert code in (0, 2)
     if code == 2:
         assert digests(run) == before
+
+
+@pytest.mark.parametrize("content", ["[1, 2]", '"x"', "null", '{"a": 3}', "\xff\xfe"])
+def test_a_damaged_eval_json_is_one_error_line_before_any_test(finished, tmp_path, capsys, content):
+    run = copy_of(finished, tmp_path)
+    (run / "eval.json").write_bytes(content.encode("latin-1"))
+    before = digests(run)
+    assert main(["eval", "--run", str(run), "--tests", "2", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "eval.json is corrupted" in err[0]
+    assert digests(run) == before
+
+
+@pytest.mark.parametrize(
+    "stored",
+    [{}, {"success_rate": "abc"}, {"success_rate": 2.5}, [1, 2], {"success_rate": float("nan")}],
+    ids=["empty", "text", "above-1", "list", "nan"],
+)
+def test_a_damaged_cell_is_computed_again_and_a_report_never_a_traceback(tmp_path, capsys, stored):
+    import json
+
+    spec = tmp_path / "e.toml"
+    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule"]\n[set.robot]\ndrive = "planar"\n'
+                    '[set.control]\nstep_budget = 8\n[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
+    out = tmp_path / "out"
+    argv = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
+    assert main(argv) == 0
+    cell = out / "cells" / "rule-run001.json"
+    good = json.loads(cell.read_text())["result"]
+    record = json.loads(cell.read_text())
+    cell.write_text(json.dumps({**record, "result": stored}))
+    assert main([*argv, "--report"]) == 0  # reported as not finished
+    assert "1 cells are not finished yet" in (out / "table.md").read_text()
+    assert main(argv) == 0  # computed again
+    assert json.loads(cell.read_text())["result"] == good
+    assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("content", ["[]", '"x"', "\xff"])
+def test_a_damaged_experiment_json_is_one_error_line(tmp_path, capsys, content):
+    spec = tmp_path / "e.toml"
+    spec.write_text('kind = "compare"\nruns = 1\ntests = 1\nmethods = ["rule"]\n')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "experiment.json").write_bytes(content.encode("latin-1"))
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "experiment.json is corrupted" in err[0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["demos", "--episodes", "1", "--seed", str(10**23), "--out", "x.npz"], "--seed: expected a seed"),
+        (["demos", "--episodes", "1", "--seed", "-1", "--out", "x.npz"], "--seed: expected a seed"),
+        (["compare", "--task", "table1", "--workers", "2147483647"], "--workers: expected a number of processes"),
+        (["train", "--demos", "minari:foo", "--out", "mm"], "Minari dataset id 'foo': expected [NAMESPACE/]NAME"),
+    ],
+)
+def test_values_out_of_range_are_one_error_line(tmp_path, monkeypatch, capsys, argv, needle):
+    monkeypatch.chdir(tmp_path)
+    if argv[0] == "train":
+        pytest.importorskip("minari")
+    try:
+        code = main([*argv, "--quiet"])
+    except SystemExit as exc:  # argparse refuses an option's value itself
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and needle in err and "Traceback" not in err and not list(tmp_path.iterdir())

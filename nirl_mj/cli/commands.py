@@ -325,6 +325,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         _check_output(args.rerun, args.overwrite)
     if subject.run:
         subject.run.read_evaluations()  # a corrupt eval.json fails now, not after the evaluation
+        if not os.access(subject.run.path, os.W_OK):
+            raise RunError(f"{subject.run.path} is not writable: eval stores its result in eval.json there")
     seeds = subject.test_seeds(args.seed, args.tests)
     with _bar(args, args.tests, "test") as bar:
         metrics, trajectories = evaluate(make_env(spec), subject.policy, seeds, subject.name,

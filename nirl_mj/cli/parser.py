@@ -33,6 +33,8 @@ def _number(kind: Callable, low: float, high: float, accepted: str) -> Callable[
 
 _positive_int = _number(int, 1, float("inf"), "a whole number >= 1")
 _probability = _number(float, 0.0, 1.0, "a probability in [0, 1]")
+_seed = _number(int, 0, 2**63 - 1, "a seed, a whole number in 0 .. 2^63 - 1")
+_workers = _number(int, 1, 1024, "a number of processes in 1 .. 1024")
 
 
 def _command(sub, name: str, func: Callable, help: str, *common: str, task: str | None = "navigate"):
@@ -79,7 +81,7 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
     )
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="where cells run: this process, local processes (default), or Ray")  # fmt: skip
-    p.add_argument("--workers", type=_positive_int, default=None,
+    p.add_argument("--workers", type=_workers, default=None,
                    help="local processes or local Ray CPUs (default: all cores)")  # fmt: skip
     p.add_argument("--address", default=None, help="with --executor ray: an existing cluster's address")
     p.add_argument(
@@ -113,19 +115,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(interrupted="finished stages are kept: continue with nirl-mj run --out {out} --resume")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--variant", choices=VARIANTS, default="default")
     p.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record")
     p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
     p.add_argument("--episodes", **iterations)
     p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
-    p.add_argument("--workers", type=_positive_int, default=None,
+    p.add_argument("--workers", type=_workers, default=None,
                    help="processes for demonstrations, training and evaluation (default: all cores)")
 
     p = _command(sub, "rollout", c.cmd_rollout, "roll out a reference policy on fresh arenas and print each "
                  "episode's outcome", "json", "quiet")  # fmt: skip
     p.add_argument("--episodes", type=_positive_int, default=10)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--policy", choices=sorted(POLICIES), default="rule")
 
     p = _command(sub, "demos", c.cmd_demos, "record expert demonstrations to a dataset file", "json", "quiet",
@@ -138,15 +140,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--random-action", type=_probability, default=0.05, help="noisy: probability of a random action"
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--out", required=True, help="dataset path (.npz)")
-    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--workers", type=_workers, default=None, help="processes (default: all cores)")
 
     p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and "
                  "record "
                  "the episodes", "overwrite")
     p.add_argument("--episodes", type=_positive_int, default=30)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--out", required=True, help="dataset path (.npz)")
 
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
@@ -159,7 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
                                "nirl-mj train --out {out} --resume")
     p.add_argument("--variant", choices=VARIANTS, default=None, help="learner preset (default: default)")
     p.add_argument("--episodes", **iterations)
-    p.add_argument("--seed", type=int, default=None, help="training seed (default: 0)")
+    p.add_argument("--seed", type=_seed, default=None, help="training seed (default: 0)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a learner setting, e.g. reward_source=progress")  # fmt: skip
@@ -176,7 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
     p.add_argument("--envs", type=_positive_int, default=None,
                    help="environments sharing each rollout, in turn (default: 1; a resume: the run's)")
-    p.add_argument("--seed", type=int, default=0, help="training seed (network, arenas)")
+    p.add_argument("--seed", type=_seed, default=0, help="training seed (network, arenas)")
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
@@ -189,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)")
     p.add_argument("--train-seed", type=int, default=0, help="with --policy bc: its training seed")
     p.add_argument("--tests", type=_positive_int, default=100)
-    p.add_argument("--seed", type=int, default=0, help="seed of the test arenas")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas")
     p.add_argument("--which", default="selected", metavar="selected|last|N",
                    help="the selected policy, the last one, or the one of iteration N")  # fmt: skip
 
@@ -199,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
     who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
-    p.add_argument("--seed", type=int, default=0, help="seed of the test arenas (as for eval)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas (as for eval)")
     p.add_argument("--episode", type=int, default=0, help="which test arena (0 = eval's first)")
     p.add_argument("--which", default="selected", help="selected, last or an iteration number")
     p.add_argument("--out", help="MP4 video of the episode")

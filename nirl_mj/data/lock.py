@@ -2,9 +2,9 @@
 
 ``with DirectoryLock(path, what):`` holds an exclusive ``flock`` on ``.NAME.lock`` in the parent
 of ``path`` (beside the directory, so that the directory's own contents stay what its commands
-write), with the holder's process id in it. A second writer is refused at once with one line
-naming that process. The operating system releases the lock when its process ends, however it
-ends (kill -9 too), so a lock left by a dead process is simply taken over.
+write), with the holder's process id in it, and removes it when done. A second writer is refused at
+once with one line naming that process. The operating system releases the lock when its process
+ends, however it ends (kill -9 too), so a lock file left by a dead process is simply taken over.
 """
 
 from __future__ import annotations
@@ -31,24 +31,34 @@ class DirectoryLock:
 
     def acquire(self) -> DirectoryLock:
         self.lock_file.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+        while True:
+            fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise LockedError(
+                    f"{self.path} is being written by process {holder} (another nirl-mj "
+                    f"{self.what}); wait for it to end, or choose another output"
+                ) from None
+            try:  # the file a releasing holder removed is not the lock any more: take the new one
+                same = os.stat(self.lock_file).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
             os.close(fd)
-            raise LockedError(
-                f"{self.path} is being written by process {holder} (another nirl-mj "
-                f"{self.what}); wait for it to end, or choose another output"
-            ) from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, str(os.getpid()).encode(), 0)
         self._fd = fd
         return self
 
     def release(self) -> None:
+        """Removes the lock file (while still holding it, so no one else holds a removed one) and
+        unlocks."""
         if self._fd is not None:
-            os.ftruncate(self._fd, 0)
+            self.lock_file.unlink(missing_ok=True)
             fcntl.flock(self._fd, fcntl.LOCK_UN)
             os.close(self._fd)
             self._fd = None

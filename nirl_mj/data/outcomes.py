@@ -77,6 +77,35 @@ def sct(trajectories: Sequence[Trajectory]) -> float:
     return total / len(trajectories)
 
 
+def metrics_problem(value: Any) -> str | None:
+    """Why ``value`` (a stored result, or anything holding evaluations' metrics in its dicts and lists)
+    is not what :func:`metrics_of` writes: a rate or SPL/SCT that is not a number in [0, 1], or a test
+    count below 1; None if every metrics dict in it is sound."""
+    if isinstance(value, list):
+        return next((p for v in value if (p := metrics_problem(v))), None)
+    if not isinstance(value, dict):
+        return None
+    if "success_rate" in value:
+        for key in (*RATE_KEYS.values(), "spl", *(["sct"] if "sct" in value else [])):
+            v = value.get(key)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
+                return f"{key} = {v!r}: not a fraction in [0, 1]"
+        tests = value.get("tests")
+        if isinstance(tests, bool) or not isinstance(tests, int) or tests < 1:
+            return f"tests = {tests!r}: not a count >= 1"
+        return None
+    return next((p for v in value.values() if (p := metrics_problem(v))), None)
+
+
+def holds_metrics(value: Any) -> bool:
+    """Whether ``value`` is, or holds in its dicts and lists, an evaluation's metrics."""
+    if isinstance(value, list):
+        return any(holds_metrics(v) for v in value)
+    return isinstance(value, dict) and (
+        "success_rate" in value or any(holds_metrics(v) for v in value.values())
+    )
+
+
 def metrics_of(trajectories: list[Trajectory]) -> dict:
     """An evaluation's metrics: outcome rates, mean path length (metres), SPL, SCT and the
     number of episodes (``tests``)."""

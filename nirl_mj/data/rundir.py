@@ -103,11 +103,8 @@ class RunDir:
             raise RunError(
                 f"{self.path} is not a nirl-mj run directory (no {RUN_FILE}); train one with `nirl-mj train`"
             )
-        try:
-            record = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise RunError(f"{path} is corrupted: {exc}") from None
-        missing = [key for key in RECORD_KEYS if not isinstance(record, dict) or key not in record]
+        record = _json_object(path)
+        missing = [key for key in RECORD_KEYS if key not in record]
         if missing:
             raise RunError(f"{path} is corrupted or not a run record: it lacks {', '.join(missing)}")
         return record
@@ -205,25 +202,38 @@ class RunDir:
     def read_reward(self) -> dict[str, Any]:
         """The selected reward as written by :meth:`write_reward`."""
         path = self.file(REWARD_FILE)
-        try:
-            return json.loads(path.read_text())
-        except FileNotFoundError:
-            raise RunError(f"{self.path} has no {REWARD_FILE}: its training has not finished") from None
-        except json.JSONDecodeError as exc:
-            raise RunError(f"{path} is corrupted: {exc}") from None
+        if not path.is_file():
+            raise RunError(f"{self.path} has no {REWARD_FILE}: its training has not finished")
+        return _json_object(path)
 
     def write_reward(self, reward: Mapping[str, Any]) -> None:
         write_text(self.file(REWARD_FILE), json.dumps(dict(reward), indent=1))
 
     def read_evaluations(self) -> dict[str, Any]:
+        """``eval.json``: each evaluation's metrics by key (``{}`` before the first)."""
         path = self.file(EVAL_FILE)
         if not path.exists():
             return {}
-        try:
-            return json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise RunError(f"{path} is corrupted: {exc}") from None
+        evaluations = _json_object(path)
+        bad = [key for key, value in evaluations.items() if not isinstance(value, dict)]
+        if bad:
+            raise RunError(f"{path} is corrupted: entry {bad[0]!r} is not an evaluation's metrics (a JSON "
+                           "object); move the file away to evaluate again")  # fmt: skip
+        return evaluations
 
     def add_evaluation(self, key: str, result: Mapping[str, Any]) -> None:
         """Stores ``result`` under ``key`` in ``eval.json``, keeping the other entries."""
         write_text(self.file(EVAL_FILE), json.dumps({**self.read_evaluations(), key: dict(result)}, indent=1))
+
+
+def _json_object(path: Path) -> dict[str, Any]:
+    """The JSON object in ``path``; a RunError naming the file if it is not readable JSON or not an
+    object."""
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise RunError(f"{path} is corrupted: {exc}") from None
+    if not isinstance(value, dict):
+        what = f"{type(value).__name__} {str(value)[:40]!r}"
+        raise RunError(f"{path} is corrupted: it holds {what}, not a JSON object")
+    return value

@@ -106,18 +106,24 @@ class Report:
 class CellStore:
     """Finished cells as ``DIR/<id>.json`` files: ``{"id", "result", "seconds", "attempts"}``."""
 
-    def __init__(self, directory: str | Path) -> None:
+    def __init__(self, directory: str | Path, check: Callable[[Any], str | None] | None = None) -> None:
         self.directory = Path(directory)
+        self.check = check  # a stored result it finds wrong (a reason) counts as not finished
 
     def path(self, cell_id: str) -> Path:
         return self.directory / f"{cell_id}.json"
 
     def load(self, cell_id: str) -> Any | None:
-        """The stored result, or None if the cell has not finished (or its file is unreadable)."""
+        """The stored result, or None if the cell has not finished (or its file is unreadable, or
+        ``check`` finds its result wrong: it is computed again)."""
         try:
-            return json.loads(self.path(cell_id).read_text())["result"]
-        except (OSError, ValueError, KeyError):
+            record = json.loads(self.path(cell_id).read_text())
+            result = record["result"]
+        except (OSError, ValueError, KeyError, TypeError):
             return None
+        if self.check is not None and self.check(result) is not None:
+            return None
+        return result
 
     def save(self, cell_id: str, result: Any, seconds: float, attempts: int) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)

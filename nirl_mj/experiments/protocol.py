@@ -62,8 +62,10 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
     if marker.is_file():
         try:
             saved = json.loads(marker.read_text())
-        except json.JSONDecodeError as exc:
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
+        if not isinstance(saved, dict):
+            raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
         differ = sorted(k for k in identity if saved.get(k) != identity.get(k))
         if differ and set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs):
             from nirl_mj.data.atomic import write_text
@@ -309,7 +311,7 @@ class Execution:
 
         return CellRunner(
             Executor(self.executor, self.workers, self.address, self.retries),
-            CellStore(out / "cells"),
+            CellStore(out / "cells", check=_cell_problem),
             self.report_only,
             log=log,
         )
@@ -326,6 +328,19 @@ class Execution:
             raise ExperimentError(
                 f"--report: {out} is still collecting its demonstrations; no cell has finished"
             )
+
+
+def _cell_problem(result) -> str | None:
+    """Why a stored cell cannot be a finished cell of an experiment (it is then computed again): not a
+    JSON object, no evaluation in it (but a sweep's training cell), or metrics out of their ranges
+    (``outcomes.metrics_problem``)."""
+    from nirl_mj.data.outcomes import holds_metrics, metrics_problem
+
+    if not isinstance(result, dict):
+        return "not a JSON object"
+    if "iterations" in result:  # a sweep's training cell: no evaluation in it
+        return None
+    return metrics_problem(result) if holds_metrics(result) else "holds no evaluation"
 
 
 @dataclass

@@ -16,6 +16,8 @@ minari:ID``).
 
 from __future__ import annotations
 
+import re
+
 import warnings
 from collections.abc import Callable, Sequence
 
@@ -166,9 +168,12 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
 def _check_id(dataset_id: str) -> None:
     from minari.dataset.minari_dataset import parse_dataset_id
 
+    if not re.fullmatch(r"[^/]+(/[^/]+)*-v\d+", dataset_id):  # Minari's own parser fails on no -vN
+        raise MinariError(f"Minari dataset id {dataset_id!r}: expected [NAMESPACE/]NAME-vVERSION, "
+                          "e.g. nirl_mj/navigate/sensor-v0")  # fmt: skip
     try:
         parse_dataset_id(dataset_id)
-    except ValueError as exc:
+    except (ValueError, TypeError) as exc:
         raise MinariError(
             f"Minari dataset id {dataset_id!r}: {exc} (e.g. nirl_mj/navigate/sensor-v0)"
         ) from None
