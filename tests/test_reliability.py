@@ -255,8 +255,14 @@ def test_a_damaged_experiment_json_is_one_error_line(tmp_path, capsys, content):
     [
         (["demos", "--episodes", "1", "--seed", str(10**23), "--out", "x.npz"], "--seed: expected a seed"),
         (["demos", "--episodes", "1", "--seed", "-1", "--out", "x.npz"], "--seed: expected a seed"),
-        (["compare", "--task", "table1", "--workers", "2147483647"], "--workers: expected a number of processes"),
-        (["train", "--demos", "minari:foo", "--out", "mm"], "Minari dataset id 'foo': expected [NAMESPACE/]NAME"),
+        (
+            ["compare", "--task", "table1", "--workers", "2147483647"],
+            "--workers: expected a number of processes",
+        ),
+        (
+            ["train", "--demos", "minari:foo", "--out", "mm"],
+            "Minari dataset id 'foo': expected [NAMESPACE/]NAME",
+        ),
     ],
 )
 def test_values_out_of_range_are_one_error_line(tmp_path, monkeypatch, capsys, argv, needle):

@@ -17,7 +17,6 @@ minari:ID``).
 from __future__ import annotations
 
 import re
-
 import warnings
 from collections.abc import Callable, Sequence
 
