@@ -222,8 +222,9 @@ def test_a_damaged_cell_is_computed_again_and_a_report_never_a_traceback(tmp_pat
     import json
 
     spec = tmp_path / "e.toml"
-    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule"]\n[set.robot]\ndrive = "planar"\n'
-                    '[set.control]\nstep_budget = 8\n[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
+    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule"]\n'
+                    '[set.robot]\ndrive = "planar"\n[set.control]\nstep_budget = 8\n'
+                    '[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
     out = tmp_path / "out"
     argv = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
     assert main(argv) == 0
