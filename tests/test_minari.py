@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -91,3 +92,38 @@ def test_gail_takes_a_minari_id_as_train_does(exported, tmp_path):
     record = json.loads((run / "run.json").read_text())
     assert record["demos"] == f"minari:{ID}"
     assert record["demo_seeds"] == sorted(t.arena_seed for t in load_dataset(exported))
+
+
+def test_an_export_is_atomic_and_overwrite_replaces_only_a_complete_one(
+    exported, tmp_path, capsys, monkeypatch
+):
+    """issue 34: --overwrite deleted the old dataset before the new one was written, and a killed
+    export left a half dataset that both export and --overwrite refused."""
+    from minari.storage.datasets_root_dir import get_dataset_path
+
+    import nirl_mj.gym.minari_export as mx
+
+    final = get_dataset_path(ID)
+    before = sorted(p.relative_to(final) for p in final.rglob("*"))
+
+    def dies(*args, **kwargs):
+        raise KeyboardInterrupt  # killed while Minari writes the new dataset
+
+    with monkeypatch.context() as patch, pytest.raises(KeyboardInterrupt):
+        patch.setattr(minari, "create_dataset_from_buffers", dies)
+        mx.export_minari(load_dataset(exported), ID, overwrite=True)
+    assert sorted(p.relative_to(final) for p in final.rglob("*")) == before  # the old one is intact
+    assert ID in minari.list_local_datasets() and not list(final.parent.parent.parent.glob(".nirl-mj-*"))
+    # a half dataset left by an export of an older version: refused without --overwrite, replaced with it
+    half = get_dataset_path("nirl_mj/navigate/half-v0")
+    assert str(half).startswith(str(tmp_path))  # the test's own store
+    (half / "data").mkdir(parents=True)
+    assert (
+        main(["export", str(exported), "--to", "minari", "--id", "nirl_mj/navigate/half-v0", "--quiet"]) == 2
+    )
+    assert "holds a half-written dataset" in capsys.readouterr().err
+    assert main(["export", str(exported), "--to", "minari", "--id", "nirl_mj/navigate/half-v0", "--quiet",
+                 "--overwrite"]) == 0  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Minari warns of the half dataset while it lists the store
+        assert minari.load_dataset("nirl_mj/navigate/half-v0").total_episodes == 3

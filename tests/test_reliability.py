@@ -5,6 +5,7 @@ from the user's side."""
 from __future__ import annotations
 
 import hashlib
+import os
 import signal
 import subprocess
 import sys
@@ -276,3 +277,23 @@ def test_values_out_of_range_are_one_error_line(tmp_path, monkeypatch, capsys, a
         code = exc.code
     err = capsys.readouterr().err
     assert code == 2 and needle in err and "Traceback" not in err and not list(tmp_path.iterdir())
+
+
+def test_the_scratch_folder_of_a_killed_collection_is_removed_by_the_next(tmp_path, monkeypatch):
+    import tempfile
+
+    from nirl_mj.experiments.demos import SCRATCH, ExpertConfig, collect
+    from nirl_mj.sim import spec as specs
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    orphan = tmp_path / f"{SCRATCH}{int(dead.stdout)}-abcd"
+    orphan.mkdir()
+    (orphan / "episode-000000.npz").write_bytes(b"half")
+    alive = tmp_path / f"{SCRATCH}{os.getpid()}-efgh"  # a live collection's: kept
+    alive.mkdir()
+    task = specs.replace(specs.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 4})
+    collect(task, ExpertConfig("rule"), 1, 0)
+    assert not orphan.exists() and alive.exists()

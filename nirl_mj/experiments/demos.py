@@ -11,6 +11,7 @@ directory (cell results travel as JSON; a dataset file keeps every array exact).
 
 from __future__ import annotations
 
+import os
 import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -24,6 +25,19 @@ from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experts import DEMONSTRATORS, EXPERT_KINDS, Expert, demonstrator_names, make_expert
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.spec import TaskSpec
+
+SCRATCH = "nirl-mj-demos-"
+"""The prefix of a collection's scratch folder in the temporary directory, followed by its process id."""
+
+
+def _remove_orphaned_scratch() -> None:
+    """Removes the scratch folders of collections whose process has died (killed: no clean-up ran)."""
+    import shutil
+
+    for folder in Path(tempfile.gettempdir()).glob(f"{SCRATCH}*"):
+        pid = folder.name[len(SCRATCH) :].split("-", 1)[0]
+        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -109,7 +123,8 @@ def collect(
         if on_episode:
             on_episode(done[cell_id])
 
-    with tempfile.TemporaryDirectory(prefix="nirl-mj-demos-") as folder:
+    _remove_orphaned_scratch()
+    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH}{os.getpid()}-") as folder:
         cells = [Cell(f"demo-{i:06d}", demo_cell, (task, expert, seed, i, folder)) for i in range(episodes)]
         executor = "serial" if workers == 1 or episodes == 1 else "local"
         with Executor(executor, min(workers, episodes), retries=0) as runner:

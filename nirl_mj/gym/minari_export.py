@@ -16,9 +16,14 @@ minari:ID``).
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
+import secrets
+import shutil
 import warnings
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -53,9 +58,16 @@ def export_minari(
     if len(tasks) > 1:
         raise MinariError(f"the dataset holds {len(tasks)} tasks; a Minari dataset has one environment: "
                           "export each task's trajectories separately")  # fmt: skip
-    exists = dataset_id in minari.list_local_datasets()
-    if exists and not overwrite:
-        raise MinariError(f"Minari dataset {dataset_id} exists; pass --overwrite to replace it")
+    from minari.storage.datasets_root_dir import get_dataset_path
+
+    final = get_dataset_path(dataset_id)
+    with warnings.catch_warnings():  # Minari warns of the half dataset we look for
+        warnings.simplefilter("ignore")
+        exists = dataset_id in minari.list_local_datasets()
+    half = final.exists() and not exists  # an export killed while writing, before this version
+    if (exists or half) and not overwrite:
+        what = "exists" if exists else "holds a half-written dataset (an interrupted export)"
+        raise MinariError(f"Minari dataset {dataset_id} {what}; pass --overwrite to replace it")
     task = trajectories[0].task
     env = gymnasium.make(_env_id(task), task=task)
     try:
@@ -65,21 +77,68 @@ def export_minari(
             if on_episode:
                 on_episode(i)
         demonstrators = sorted({t.demonstrator for t in trajectories})
-        if exists:  # only now: a dataset that does not replay leaves the old one in place
-            minari.delete_dataset(dataset_id)
-        with warnings.catch_warnings():  # author, e-mail, permalink, eval_env: optional, not ours to guess
-            warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-            return minari.create_dataset_from_buffers(
-                dataset_id,
-                buffers,
-                env=env,
-                algorithm_name=", ".join(demonstrators),
-                description=f"{len(trajectories)} episodes of nirl-mj task {task.get('name')} by "
-                f"{', '.join(demonstrators)}, replayed from their arena seeds and actions",
-                requirements=["nirl-mj[gym]"],
-            )
+        staging = _staging(get_dataset_path())
+        try:
+            with warnings.catch_warnings():  # author, e-mail, permalink, eval_env: optional, not ours
+                warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+                with _datasets_path(staging):  # written where no reader looks, then moved into place
+                    minari.create_dataset_from_buffers(
+                        dataset_id,
+                        buffers,
+                        env=env,
+                        algorithm_name=", ".join(demonstrators),
+                        description=f"{len(trajectories)} episodes of nirl-mj task {task.get('name')} by "
+                        f"{', '.join(demonstrators)}, replayed from their arena seeds and actions",
+                        requirements=["nirl-mj[gym]"],
+                    )
+            _move_into_place(staging / dataset_id, final)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+        return minari.load_dataset(dataset_id)
     finally:
         env.close()
+
+
+STAGING = ".nirl-mj-export-"
+"""The prefix of an export's hidden folder under the datasets root (Minari lists no hidden folder),
+followed by its process id."""
+
+
+def _staging(root) -> Path:
+    """A new hidden folder under the datasets root for one export; removes those of dead exports."""
+    for old in root.glob(f"{STAGING}*"):
+        pid = old.name[len(STAGING) :].split("-", 1)[0]
+        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
+            shutil.rmtree(old, ignore_errors=True)  # killed while writing: never a dataset
+    folder = root / f"{STAGING}{os.getpid()}-{secrets.token_hex(4)}"
+    folder.mkdir(parents=True)
+    return folder
+
+
+@contextlib.contextmanager
+def _datasets_path(path: Path):
+    """Minari's datasets root set to ``path`` for the block (it reads the variable at every call)."""
+    before = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(path)
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ["MINARI_DATASETS_PATH"]
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = before
+
+
+def _move_into_place(new: Path, final: Path) -> None:
+    """Puts the complete dataset ``new`` at ``final``; an old one there is removed only after."""
+    final.parent.mkdir(parents=True, exist_ok=True)
+    if not final.exists():
+        os.rename(new, final)
+        return
+    trash = final.parent / f"{STAGING}{os.getpid()}-old-{secrets.token_hex(4)}"
+    os.rename(final, trash)
+    os.rename(new, final)
+    shutil.rmtree(trash, ignore_errors=True)
 
 
 def _env_id(task: dict) -> str:

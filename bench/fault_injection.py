@@ -1,0 +1,282 @@
+"""Fault injection: kill -9 at random moments of train, compare, demos, export and run, then resume.
+
+For each command, a reference run to completion; then ``--kills`` times: the same command in a
+fresh output, killed (SIGKILL: no clean-up runs) after a random delay drawn from the reference's
+duration, then run again as a user would (``--resume`` where the command takes it, else the same
+command); its results must equal the reference's bit for bit (the arrays and records that the
+command writes, timing fields aside). Tiny settings (a 24 m arena, the planar drive), so a kill
+lands anywhere: in start-up, in the middle of a write, or after the end. Prints one line per kill
+and a summary; exit status 1 if any resume lost or changed anything.
+
+    python bench/fault_injection.py [--kills 10] [--seed 0]      (5 commands x kills in all)
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TASK = [arg for kv in ("arena.size=[24.0, 24.0]", "arena.start=[4.0, 4.0]", "arena.target=[20.0, 20.0]",
+                       "arena.static_obstacles=3", "arena.clear_radius=3.0", 'robot.drive="planar"')
+        for arg in ("--set", kv)]  # fmt: skip
+LEARNER = ["--config", "trajectories_per_episode=2", "--config", "validation_arenas=2", "--config",
+           "replay_episodes=2"]  # fmt: skip
+EXPERIMENT = """kind = "compare"
+runs = 2
+tests = 2
+methods = ["NIRL", "BC", "rule"]
+[set.arena]
+size = [24.0, 24.0]
+start = [4.0, 4.0]
+target = [20.0, 20.0]
+static_obstacles = 3
+clear_radius = 3.0
+[set.robot]
+drive = "planar"
+[demos]
+episodes = 2
+[config]
+episodes = 2
+trajectories_per_episode = 2
+validation_arenas = 2
+"""
+
+
+def npz_digest(path: Path) -> str:
+    import numpy as np
+
+    h = hashlib.sha256()
+    with np.load(path, allow_pickle=False) as data:
+        for key in sorted(data.files):
+            h.update(key.encode())
+            h.update(np.ascontiguousarray(data[key]).tobytes())
+    return h.hexdigest()
+
+
+def without_times(value):
+    """JSON without the fields that hold wall-clock times."""
+    if isinstance(value, dict):
+        return {k: without_times(v) for k, v in value.items() if k not in ("seconds", "attempts", "wall_s")}
+    if isinstance(value, list):
+        return [without_times(v) for v in value]
+    return value
+
+
+def train_result(out: Path) -> dict:
+    return {"policy": npz_digest(out / "policy.npz"), "checkpoint": npz_digest(out / "checkpoint.npz"),
+            "metrics": (out / "metrics.jsonl").read_text(),
+            "selection": json.loads((out / "run.json").read_text())["selection"]}  # fmt: skip
+
+
+def compare_result(out: Path) -> dict:
+    return {p.name: without_times(json.loads(p.read_text())) for p in sorted((out / "cells").glob("*.json"))}
+
+
+def demos_result(out: Path) -> dict:
+    return {"demos": npz_digest(out)}
+
+
+def run_result(out: Path) -> dict:
+    results = without_times(json.loads((out / "results.json").read_text()))
+    return {
+        "results": json.dumps(results, sort_keys=True),
+        "policy": npz_digest(out / "runs/NIRL/0/policy.npz"),
+    }
+
+
+def export_result(out: Path) -> dict:
+    import minari
+
+    dataset = minari.load_dataset(out.name)
+    return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
+            "actions": [list(map(int, e.actions)) for e in dataset.iterate_episodes()]}  # fmt: skip
+
+
+def commands(
+    work: Path,
+) -> dict[str, tuple[Callable[[Path], list[str]], Callable[[Path], list[str]], Callable]]:
+    """Per command: the first call, the call after a kill, and what its results are."""
+    demos = work / "demos.npz"
+    spec = work / "experiment.toml"
+    spec.write_text(EXPERIMENT)
+    nirl = [sys.executable, "-m", "nirl_mj.cli"]
+    return {
+        "train": (
+            lambda o: [
+                *nirl,
+                "train",
+                "--demos",
+                str(demos),
+                "--out",
+                str(o),
+                "--episodes",
+                "3",
+                "--quiet",
+                *TASK,
+                *LEARNER,
+            ],  # fmt: skip
+            lambda o: [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume", "--quiet"],
+            train_result,
+        ),
+        "compare": (
+            lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--quiet", "--workers", "2"],
+            lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--quiet", "--workers", "2"],
+            compare_result,
+        ),
+        "demos": (
+            lambda o: [
+                *nirl,
+                "demos",
+                "--episodes",
+                "3",
+                "--seed",
+                "4",
+                "--workers",
+                "2",
+                "--out",
+                str(o),
+                "--quiet",
+                *TASK,
+            ],  # fmt: skip
+            lambda o: [
+                *nirl,
+                "demos",
+                "--episodes",
+                "3",
+                "--seed",
+                "4",
+                "--workers",
+                "2",
+                "--out",
+                str(o),
+                "--quiet",
+                "--overwrite",
+                *TASK,
+            ],  # fmt: skip
+            demos_result,
+        ),
+        "run": (
+            lambda o: [
+                *nirl,
+                "run",
+                "--demos",
+                "2",
+                "--episodes",
+                "2",
+                "--tests",
+                "2",
+                "--workers",
+                "2",
+                "--out",
+                str(o),
+                "--quiet",
+                *TASK,
+            ],  # fmt: skip
+            lambda o: [
+                *nirl,
+                "run",
+                "--demos",
+                "2",
+                "--episodes",
+                "2",
+                "--tests",
+                "2",
+                "--workers",
+                "2",
+                "--out",
+                str(o),
+                "--quiet",
+                "--resume",
+                *TASK,
+            ],  # fmt: skip
+            run_result,
+        ),
+        "export": (
+            lambda o: [*nirl, "export", str(demos), "--to", "minari", "--id", o.name, "--quiet"],
+            lambda o: [
+                *nirl,
+                "export",
+                str(demos),
+                "--to",
+                "minari",
+                "--id",
+                o.name,
+                "--quiet",
+                "--overwrite",
+            ],
+            export_result,
+        ),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kills", type=int, default=10, help="kills per command (default 10: 50 in all)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--only", default=None, help="comma-separated commands")
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    failures, kills = [], 0
+    with tempfile.TemporaryDirectory(prefix="nirl-mj-faults-") as tmp:
+        work = Path(tmp)
+        os.environ["MINARI_DATASETS_PATH"] = str(work / "minari")  # this process reads the exports too
+        env = dict(os.environ)
+        demos = [
+            "demos",
+            "--episodes",
+            "2",
+            "--seed",
+            "1",
+            "--workers",
+            "1",
+            "--out",
+            str(work / "demos.npz"),
+        ]
+        subprocess.run(
+            [sys.executable, "-m", "nirl_mj.cli", *demos, "--quiet", *TASK], check=True, cwd=ROOT, env=env
+        )
+        todo = commands(work)
+        for name in args.only.split(",") if args.only else todo:
+            first, again, result = todo[name]
+            ref = work / "ns" / f"{name}-ref-v0" if name == "export" else work / f"{name}-ref"
+            start = time.perf_counter()
+            subprocess.run(first(ref), check=True, cwd=ROOT, env=env, stdout=subprocess.DEVNULL)
+            took = time.perf_counter() - start
+            reference = result(ref)
+            for k in range(args.kills):
+                out = work / "ns" / f"{name}-k{k}-v0" if name == "export" else work / f"{name}-k{k}"
+                delay = rng.uniform(0.05, 0.95) * took
+                process = subprocess.Popen(first(out), cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
+                                           stderr=subprocess.DEVNULL)  # fmt: skip
+                time.sleep(delay)
+                process.send_signal(signal.SIGKILL)
+                process.wait()
+                kills += 1
+                done = subprocess.run(again(out), cwd=ROOT, env=env, capture_output=True, text=True)
+                ok = done.returncode == 0 and result(out) == reference
+                verdict = (
+                    "identical" if ok else f"DIFFERENT ({done.returncode}: {done.stderr.strip()[-200:]})"
+                )
+                print(f"{name} kill {k} at {delay:.1f} s of {took:.1f}: {verdict}")
+                if not ok:
+                    failures.append(f"{name} kill {k}")
+    print(
+        f"{kills} kills, {kills - len(failures)} resumed identical"
+        + (f"; failed: {failures}" if failures else "")
+    )
+    sys.exit(1 if failures else 0)
+
+
+if __name__ == "__main__":
+    main()
