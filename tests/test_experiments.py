@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from nirl_mj.cli import main
-from nirl_mj.experiments import protocol
+from nirl_mj.experiments import kinds, protocol
 from nirl_mj.experiments.definition import (
     AXIS_KEYS,
     BUILTIN_METHODS,
@@ -341,7 +341,7 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     demos = protocol.ensure_demos(out, e, 1, lambda _: None)
     job = protocol.run_jobs(e, out, {0: demos})["NIRL", 0]
     reference = dataclasses.replace(job, run_dir=str(tmp_path / "reference"))
-    protocol.ensure_trained(reference)
+    kinds.ensure_trained(reference)
 
     class Stop(Exception):
         pass
@@ -363,7 +363,7 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
         )
     assert not (Path(job.run_dir) / "policy.npz").exists()
     policy = Path(job.run_dir) / "policy.npz"
-    protocol.ensure_trained(job)
+    kinds.ensure_trained(job)
     assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
     # Killed between policy.npz and the final run.json: finished again, not taken as done.
     record_file = Path(job.run_dir) / "run.json"
@@ -371,12 +371,12 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     for key in ("iterations", "selected_iteration", "train_seeds"):
         record.pop(key)
     record_file.write_text(json.dumps(record))
-    assert "train_seeds" in protocol.ensure_trained(job)
+    assert "train_seeds" in kinds.ensure_trained(job)
     assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
     # Killed before its first checkpoint: only run.json is there; started afresh.
     policy.unlink()
     (Path(job.run_dir) / "checkpoint.npz").unlink()
-    protocol.ensure_trained(job)
+    kinds.ensure_trained(job)
     assert policy.read_bytes() == (Path(reference.run_dir) / "policy.npz").read_bytes()
 
 

@@ -2,6 +2,8 @@
 # Success per floor-plan family of tasks/structured.toml (N arenas each, default 20; test seed 0 for
 # the policies, demonstration seed 7 for the sensor expert, so its arenas differ): a trained run's
 # policy, and unless REFERENCES=0 the rule, always forward and the sensor expert.
+# The suites measure the same as an axis of an experiment (`family` in tasks/suites/transfer.toml, every
+# method, paired test arenas, intervals); this script stays for the tables of ALGORITHM.md that cite it.
 # Usage: bash docs/scripts/floor_plan_families.sh RUN [N]     (from any directory; nirl-mj on PATH
 # or in the checkout's .venv). ALGORITHM.md's tables name the runs they used.
 set -euo pipefail

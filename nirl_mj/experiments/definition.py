@@ -95,6 +95,7 @@ class MethodSpec:
     envs: int = LEGACY["envs"]
     settings: dict = field(default_factory=dict)  # rl: changes to PPO's settings (experiments.rl.TUNABLE)
     plugin: str = ""  # kind "plugin": the entry point of group nirl_mj.methods (experiments.plugins)
+    declared_reads: tuple[str, ...] = ()  # kind "plugin": what the method declares it reads
 
     @property
     def trains(self) -> bool:
@@ -540,7 +541,11 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
         if method.plugin not in _installed():
             raise ExperimentError(f"{where}: plugin = {method.plugin!r}: no installed package provides it; "
                                   f"installed: {', '.join(_installed()) or 'none'}")  # fmt: skip
-        load_method(method.plugin, method.settings)  # its declarations and settings, checked now
+        try:
+            declared = load_method(method.plugin, method.settings).reads  # declarations, settings checked now
+        except SpecError as exc:
+            raise ExperimentError(f"{where}: {exc}") from None
+        method = dataclasses.replace(method, declared_reads=tuple(declared))
     if method.trains:
         try:
             method.learner_config(config)
@@ -565,7 +570,7 @@ def _method_identity(method: MethodSpec) -> dict:
 
         return {"name": method.name, "kind": "plugin", "plugin": method.plugin, "steps": method.steps,
                 "settings": method.settings, "version": version_of(method.plugin)}  # fmt: skip
-    del data["plugin"]
+    del data["plugin"], data["declared_reads"]
     legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
     for key in RL_KEYS:
         if method.kind != "rl" or (legacy and key in LEGACY) or (key == "settings" and not method.settings):

@@ -13,7 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
+
+from nirl_mj.experiments.definition import ExperimentError
 
 
 @dataclass(frozen=True)
@@ -25,8 +28,27 @@ class Trained:
     seen: frozenset[int] = frozenset()
 
 
+def read_finished(run_dir: str | Path) -> dict:
+    """The record of a finished training run; a clear error if it has not finished."""
+    from nirl_mj.data.rundir import RunDir
+
+    run = RunDir(run_dir)
+    record = run.read_record() if run.is_run else {}
+    if "train_seeds" not in record:
+        raise ExperimentError(f"{run_dir}: its training has not finished; rerun the experiment to train it")
+    return record
+
+
+def ensure_trained(job) -> dict:
+    """Trains the job's IRL run, resumes it from its checkpoint, or leaves a finished one; returns its
+    record (``nirl_mj.experiments.training.ensure_trained``)."""
+    from nirl_mj.experiments.training import ensure_trained as ensure_run
+    from nirl_mj.learn.config import LearnerConfig
+
+    return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed)
+
+
 def _irl(job, train: bool) -> Trained:
-    from nirl_mj.experiments.protocol import ensure_trained, read_finished
     from nirl_mj.experiments.seeds import seen_seeds
     from nirl_mj.experiments.training import load_policy
 
@@ -81,7 +103,8 @@ def _reference(job, train: bool) -> Trained:
 def _plugin(job, train: bool) -> Trained:
     from nirl_mj.experiments.plugins import train_plugin
 
-    return train_plugin(job)
+    policy, seen = train_plugin(job)
+    return Trained(policy, frozenset(seen))
 
 
 KINDS: dict[str, Callable[[Any, bool], Trained]] = {

@@ -39,14 +39,13 @@ from typing import Any
 
 import numpy as np
 
-from nirl_mj.experiments.definition import ExperimentError
-from nirl_mj.experiments.kinds import Trained
+from nirl_mj.sim.spec import SpecError
 
 GROUP = "nirl_mj.methods"
 OBSERVATIONS = ("features",)
 
 
-class MethodError(ExperimentError):
+class MethodError(SpecError):
     """A method broke the protocol's rules (a test arena asked for, the budget exceeded, a policy of
     the wrong shape, a bad declaration). Deterministic: its cell is not retried."""
 
@@ -107,11 +106,6 @@ def check_declarations(name: str, method: Any) -> None:
         raise MethodError(
             f"method {name!r}: it has no train(demonstrations, make_env, budget, seed, workdir)"
         )
-
-
-def method_reads(name: str, settings: dict | None = None) -> list[str]:
-    """What method ``name`` declares it reads."""
-    return list(load_method(name, settings).reads)
 
 
 def demonstration_arrays(trajectories: list) -> dict[str, np.ndarray]:
@@ -208,10 +202,10 @@ def checked_policy(name: str, policy: Any, example: np.ndarray) -> Callable[[np.
     return act
 
 
-def train_plugin(job) -> Trained:
+def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     """Trains the plugin method of ``job`` (``nirl_mj.experiments.kinds``): its demonstrations as
     arrays, environments on the run's training arenas, its budget and a work directory; never the
-    test arenas."""
+    test arenas. Returns its checked policy and the arenas its environments drew."""
     from nirl_mj.data.dataset import load_dataset
 
     name = job.method.plugin
@@ -223,5 +217,4 @@ def train_plugin(job) -> Trained:
     workdir.mkdir(parents=True, exist_ok=True)
     policy = method.train(demonstrations=demos, make_env=lambda: protocol_env(job.task, budget, reads),
                           budget=job.method.steps, seed=job.seed, workdir=str(workdir))  # fmt: skip
-    return Trained(checked_policy(job.method.name, policy, demos["observations"][0]),
-                   frozenset(budget.stream.used))  # fmt: skip
+    return checked_policy(job.method.name, policy, demos["observations"][0]), list(budget.stream.used)

@@ -236,26 +236,6 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
     return jobs
 
 
-def read_finished(run_dir: str | Path) -> dict:
-    """The record of a finished training run; a clear error if it has not finished."""
-    from nirl_mj.data.rundir import RunDir
-
-    run = RunDir(run_dir)
-    record = run.read_record() if run.is_run else {}
-    if "train_seeds" not in record:
-        raise ExperimentError(f"{run_dir}: its training has not finished; rerun the experiment to train it")
-    return record
-
-
-def ensure_trained(job: RunJob) -> dict:
-    """Trains the job's run, resumes it from its checkpoint, or leaves a finished one; returns its
-    record (``nirl_mj.experiments.training.ensure_trained``)."""
-    from nirl_mj.experiments.training import ensure_trained as ensure_run
-    from nirl_mj.learn.config import LearnerConfig
-
-    return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed)
-
-
 def policy_of(job: RunJob, train: bool = True) -> Callable:
     """The job's greedy policy on phi(s) (for ``kind = "expert"``: the demonstrator, an Agent that
     reads the whole observation), training (or resuming) it first if it trains

@@ -83,10 +83,8 @@ def method_reads(method: Any, shared_config: dict | None = None) -> list[str]:
         return ["hand_written"]
     if kind == "expert":
         return ["demonstrator"]
-    if kind == "plugin":
-        from nirl_mj.experiments.plugins import method_reads as plugin_reads
-
-        return _ordered(set(plugin_reads(method.plugin, method.settings)))
+    if kind == "plugin":  # as it declares (experiments.plugins), read when the experiment was loaded
+        return _ordered(set(method.declared_reads))
     raise ValueError(f"unknown method kind {kind!r}")
 
 

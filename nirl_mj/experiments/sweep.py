@@ -26,10 +26,10 @@ from pathlib import Path
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.experiments.definition import Experiment
 from nirl_mj.experiments.executors import Cell, Failure
+from nirl_mj.experiments.kinds import ensure_trained
 from nirl_mj.experiments.protocol import (
     Execution,
     RunJob,
-    ensure_trained,
     evaluate_policy,
     failed_section,
     failure_rows,
