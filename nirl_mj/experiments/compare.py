@@ -29,7 +29,7 @@ from pathlib import Path
 
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.experiments import tidy
-from nirl_mj.experiments.definition import Experiment, ExperimentError
+from nirl_mj.experiments.definition import Experiment
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
     Execution,
@@ -70,10 +70,7 @@ def run_compare(
     ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
     """
     execution = execution or Execution()
-    unknown = sorted(set(execution.only) - {m.name for m in experiment.methods})
-    if unknown:  # before anything is made in OUT
-        raise ExperimentError(f"--only {', '.join(unknown)}: not a method of {experiment.name} "
-                              f"({', '.join(m.name for m in experiment.methods)})")  # fmt: skip
+    execution.check_only(experiment)  # before anything is made in OUT
     if execution.reuse:
         from nirl_mj.experiments.reuse import read_old, reuse_cells
 
@@ -82,16 +79,8 @@ def run_compare(
     if execution.reuse:
         reuse_cells(execution.reuse, experiment, out, jobs, cell_id, log)
     cells = [Cell(cell_id(m, r), compare_cell, (job, experiment.test_task)) for (m, r), job in jobs.items()]
-    left_out = {cell_id(m, r) for m, r in jobs if execution.only and m not in execution.only}
-    others = [c for c in cells if c.id in left_out]
-    cells = [c for c in cells if c.id not in left_out]
     with execution.start(out, log) as runner:
-        if on_start:
-            on_start(len(cells), runner.finished(cells))
-        report = runner.run(cells, on_done)
-        # the methods left out by --only: their finished cells, as a report shows them
-        report.results |= {c.id: r for c in others if (r := runner.store.load(c.id)) is not None}
-        runner.unfinished += sum(c.id not in report.results for c in others)
+        report = runner.run_only(cells, execution.only, on_start, on_done)
     summary = summarise(experiment, report.results)
     summary["failures"] = failure_rows(report.failures)
     summary["unfinished"] = runner.unfinished

@@ -296,6 +296,13 @@ class Execution:
             log=log,
         )
 
+    def check_only(self, experiment: Experiment) -> None:
+        """Refuses an ``--only`` name that is not a method of ``experiment``."""
+        unknown = sorted(set(self.only) - {m.name for m in experiment.methods})
+        if unknown:
+            raise ExperimentError(f"--only {', '.join(unknown)}: not a method of {experiment.name} "
+                                  f"({', '.join(m.name for m in experiment.methods)})")  # fmt: skip
+
     def check_output(self, out: str | Path) -> None:
         """With ``report_only``, OUT must hold a started experiment: there is nothing to report else."""
         if not self.report_only:
@@ -345,6 +352,20 @@ class CellRunner:
         report.results = {c.id: r for c in cells if (r := self.store.load(c.id)) is not None}
         report.reused = list(report.results)
         self.unfinished += len(cells) - len(report.results)
+        return report
+
+    def run_only(self, cells: list, only: tuple[str, ...], on_start: Callable | None = None,
+                 on_done: Callable | None = None):  # fmt: skip
+        """Runs the cells of the methods in ``only`` (every cell if it is empty; a cell's method is its
+        first argument's, a ``RunJob``); the others' stored cells join the report as a ``--report``
+        shows them. ``on_start(cells to run, already finished)``."""
+        mine = [c for c in cells if not only or c.args[0].method.name in only]
+        if on_start:
+            on_start(len(mine), self.finished(mine))
+        report = self.run(mine, on_done)
+        others = [c for c in cells if c not in mine]
+        report.results |= {c.id: r for c in others if (r := self.store.load(c.id)) is not None}
+        self.unfinished += sum(c.id not in report.results for c in others)
         return report
 
     def finished(self, cells: list) -> int:

@@ -110,10 +110,7 @@ def run_suite(
     from nirl_mj.experiments.executors import default_workers
 
     execution = execution or Execution()
-    unknown = sorted(set(execution.only) - {m.name for m in experiment.methods})
-    if unknown:  # before anything is made in OUT
-        raise ExperimentError(f"--only {', '.join(unknown)}: not a method of {experiment.name} "
-                              f"({', '.join(m.name for m in experiment.methods)})")  # fmt: skip
+    execution.check_only(experiment)  # before anything is made in OUT
     if execution.reuse:
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
@@ -123,14 +120,8 @@ def run_suite(
         cells = training_cells(experiment, out, execution, workers, log)
     else:
         cells = test_cells(experiment, out, execution, workers, log)
-    only = [c for c in cells if not execution.only or c.args[0].method.name in execution.only]
     with execution.start(out, log) as runner:
-        if on_start:
-            on_start(len(only), runner.finished(only))
-        report = runner.run(only, on_done)
-        others = [c for c in cells if c not in only]  # left to another --only: reported as stored
-        report.results |= {c.id: r for c in others if (r := runner.store.load(c.id)) is not None}
-        runner.unfinished += sum(c.id not in report.results for c in others)
+        report = runner.run_only(cells, execution.only, on_start, on_done)
     rows = tidy_rows(experiment, report.results)
     summary = summarise(experiment, rows)
     summary["failures"] = failure_rows(report.failures)
