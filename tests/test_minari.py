@@ -127,3 +127,15 @@ def test_an_export_is_atomic_and_overwrite_replaces_only_a_complete_one(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # Minari warns of the half dataset while it lists the store
         assert minari.load_dataset("nirl_mj/navigate/half-v0").total_episodes == 3
+
+
+def test_minari_episodes_carry_the_outcome_and_is_success_in_their_infos(exported):
+    """issue 33: the episodes' infos were empty (no is_success, no outcome)."""
+    trajectories = load_dataset(exported)
+    for episode, trajectory in zip(minari.load_dataset(ID).iterate_episodes(), trajectories, strict=True):
+        infos = episode.infos
+        assert len(infos["is_success"]) == len(trajectory) + 1  # the reset's, then one per step
+        assert [o.decode() for o in infos["outcome"][:-1]] == ["running"] * len(trajectory)
+        assert infos["outcome"][-1].decode() == trajectory.outcome
+        assert bool(infos["is_success"][-1]) == trajectory.success and not any(infos["is_success"][:-1])
+        assert list(infos["steps"]) == list(range(len(trajectory) + 1))

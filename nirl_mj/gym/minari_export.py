@@ -154,16 +154,19 @@ def _replay(env, trajectory: Trajectory, index: int):
     from minari.data_collector import EpisodeBuffer
 
     seed = int(trajectory.arena_seed)
-    obs, _ = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed)
     _check_state(obs, trajectory, 0, index)
     observations = {key: [value] for key, value in obs.items()}
+    infos = {key: [info[key]] for key in INFO_KEYS}
     rewards, terminations, truncations = [], [], []
     for t, action in enumerate(trajectory.actions.tolist()):
         if terminations[-1:] == [True] or truncations[-1:] == [True]:
             raise MinariError(f"trajectory {index} (arena {seed}) ended after {t} of its "
                               f"{len(trajectory)} decisions when replayed")  # fmt: skip
-        obs, reward, terminated, truncated, _ = env.step(np.int64(action))
+        obs, reward, terminated, truncated, info = env.step(np.int64(action))
         _check_state(obs, trajectory, t + 1, index)
+        for key in INFO_KEYS:
+            infos[key].append(info[key])
         for key, value in obs.items():
             observations[key].append(value)
         rewards.append(reward)
@@ -174,7 +177,20 @@ def _replay(env, trajectory: Trajectory, index: int):
                           "decisions (abandoned?); Minari keeps finished episodes only")  # fmt: skip
     return EpisodeBuffer(id=index, seed=seed, observations=observations,
                          actions=[np.int64(a) for a in trajectory.actions.tolist()], rewards=rewards,
-                         terminations=terminations, truncations=truncations, infos={})  # fmt: skip
+                         terminations=terminations, truncations=truncations,
+                         infos={k: _info_array(v) for k, v in infos.items()})  # fmt: skip
+
+
+INFO_KEYS = ("is_success", "outcome", "steps")
+"""The environment's ``info`` kept in every Minari episode, one entry per step and one for the reset
+(as Minari's own collector keeps it): ``is_success`` (bool), ``outcome`` (ASCII bytes: running,
+target, collision, timeout, physics_error) and ``steps``."""
+
+
+def _info_array(values: list) -> np.ndarray:
+    """One info entry per step as Minari's HDF5 storage holds it: text as ASCII bytes."""
+    array = np.asarray(values)
+    return array.astype("S") if array.dtype.kind == "U" else array
 
 
 def _check_state(obs: dict, trajectory: Trajectory, t: int, index: int) -> None:
