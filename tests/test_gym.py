@@ -261,3 +261,38 @@ def test_the_readme_example_task_path_works_from_another_directory(tmp_path, mon
     assert env.unwrapped.task_spec.arena.moving_obstacles > 0 and env.unwrapped.task_spec.control.speed == 3.0
     with pytest.raises(SpecError, match="task file not found: tasks/nowhere.toml"):
         gymnasium.make("nirl_mj/Navigate-v0", task="tasks/nowhere.toml")
+
+
+def test_an_expert_drives_a_vector_environment_as_it_drives_each_one():
+    """issue 33: experts failed on a batched (vector-env) observation."""
+    from nirl_mj.experts import make_expert
+    from nirl_mj.gym.policies import ExpertPolicy
+
+    envs = gymnasium.make_vec("nirl_mj/Navigate-v0", num_envs=2, vectorization_mode="sync", set=SMALL)
+    policy = ExpertPolicy("sensor")
+    obs, _ = envs.reset(seed=[5, 6])
+    taken = [[], []]
+    for _ in range(6):
+        actions = policy(obs)
+        assert actions.shape == (2,)
+        for i in range(2):
+            taken[i].append(int(actions[i]))
+        obs, *_ = envs.step(actions)
+    dm = nirl_mj.make_env(envs.envs[0].unwrapped.task_spec)
+    for i, seed in enumerate((5, 6)):
+        assert taken[i] == run_episode(dm, make_expert("sensor"), seed).actions.tolist()[:6]
+    with pytest.raises(ValueError, match="one ExpertPolicy per environment"):
+        ExpertPolicy("planner", env=envs.envs[0])(obs)
+
+
+def test_an_environment_pickles_as_a_fresh_one_of_the_same_task():
+    """issue 33: the env could not be pickled."""
+    import pickle
+
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.speed=1.5"], observation="features")
+    first, _ = env.reset(seed=3)
+    env.step(0)
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy.unwrapped.task_spec == env.unwrapped.task_spec
+    again, _ = copy.reset(seed=3)
+    assert np.array_equal(first, again) and copy.observation_space == env.observation_space

@@ -73,6 +73,9 @@ class NavigationEnv(gymnasium.Env):
             raise SpecError(f"render_mode={render_mode!r}: accepted: None, 'rgb_array'")
         if camera not in CAMERAS:
             raise SpecError(f"camera={camera!r}: accepted: {', '.join(CAMERAS)}")
+        # what pickling keeps: the task as resolved and the options (the simulation is rebuilt)
+        self._init = {"task": spec.to_dict(), "observation": observation, "render_mode": render_mode,
+                      "camera": camera, "width": width, "height": height}  # fmt: skip
         self._keys, self._single = _observation_keys(observation)
         self._ended: bool | None = None  # None: no episode yet
         self._env = make_env(spec)
@@ -91,6 +94,15 @@ class NavigationEnv(gymnasium.Env):
         self.observation_space = (
             space_of(obs_spec[self._keys[0]]) if self._single else dict_space(obs_spec, self._keys)
         )
+
+    def __getstate__(self) -> dict:
+        """A pickled environment keeps its task and options; it unpickles as a fresh one of the same
+        task, to be reset (the simulation itself does not pickle: Gymnasium's async vector
+        environments and Ray send environments this way)."""
+        return dict(self._init)
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(**state)
 
     @property
     def dm_env(self):

@@ -48,7 +48,9 @@ class ExpertPolicy:
         if (kind in _NEEDS_ENV or options.get("base") == "planner") and env is None:
             raise ValueError(f"the {kind} expert reads the environment: give env=the Gymnasium environment")
         self.kind = kind
+        self._options = options
         self._expert = make_expert(kind, **options)
+        self._batch: list = []
         self._env = env
 
     def __call__(self, observation: Mapping[str, np.ndarray]) -> int:
@@ -57,12 +59,28 @@ class ExpertPolicy:
                 f"the {self.kind} expert takes the full Dict observation of a nirl_mj environment "
                 "(made without observation=...)"
             )
+        if np.ndim(observation["steps"]) == 2:  # a vector environment's batch: one expert per environment
+            return self._act_batch(observation)
+        return self._act(self._expert, observation)
+
+    def _act(self, expert, observation: Mapping[str, np.ndarray]) -> int:
         if int(observation["steps"][0]) == 0:
             timestep = dm_env.restart(observation)
-            self._expert.reset(self._dm_env(), timestep)
+            expert.reset(self._dm_env(), timestep)
         else:
             timestep = dm_env.transition(0.0, observation)
-        return int(self._expert.act(timestep))
+        return int(expert.act(timestep))
+
+    def _act_batch(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+        if self.kind in _NEEDS_ENV or self._options.get("base") == "planner":
+            raise ValueError(f"the {self.kind} expert reads its environment: for a vector environment make one "
+                             "ExpertPolicy per environment, each given its own env")  # fmt: skip
+        n = len(observation["steps"])
+        while len(self._batch) < n:  # each environment's expert keeps its own memory between steps
+            self._batch.append(make_expert(self.kind, **self._options))
+        return np.array(
+            [self._act(self._batch[i], {k: v[i] for k, v in observation.items()}) for i in range(n)]
+        )
 
     def _dm_env(self):
         return None if self._env is None else self._env.unwrapped.dm_env
