@@ -111,7 +111,8 @@ def commands(
     spec = work / "experiment.toml"
     spec.write_text(EXPERIMENT)
     nirl = [sys.executable, "-m", "nirl_mj.cli"]
-    return {
+    todo_first: dict[str, Callable[[Path], list[str]]] = {}
+    todo = {
         "train": (
             lambda o: [
                 *nirl,
@@ -126,7 +127,12 @@ def commands(
                 *TASK,
                 *LEARNER,
             ],  # fmt: skip
-            lambda o: [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume", "--quiet"],
+            # as the refusal says: --resume once the run has started (its run.json), else the same command
+            lambda o: (
+                [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume", "--quiet"]
+                if (o / "run.json").is_file()
+                else todo_first["train"](o)
+            ),
             train_result,
         ),
         "compare": (
@@ -218,6 +224,8 @@ def commands(
             export_result,
         ),
     }
+    todo_first.update({name: first for name, (first, _, _) in todo.items()})
+    return todo
 
 
 def main() -> None:

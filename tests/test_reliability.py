@@ -297,3 +297,13 @@ def test_the_scratch_folder_of_a_killed_collection_is_removed_by_the_next(tmp_pa
     task = specs.replace(specs.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 4})
     collect(task, ExpertConfig("rule"), 1, 0)
     assert not orphan.exists() and alive.exists()
+
+
+def test_a_resume_of_a_training_that_had_not_started_says_to_run_it_without_resume(demos, tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / f".{RUN_FILE}.1a2b3c4d.tmp").write_text('{"half": ')  # killed in its first write
+    assert main(resume_args(demos, run)) == 2
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "the same command without --resume" in err
+    assert main(train_args(demos, run)) == 0

@@ -20,6 +20,7 @@ from typing import Any
 import dm_env
 import numpy as np
 
+from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.data.dataset import dataset_digest, load_dataset
 from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
@@ -64,6 +65,10 @@ def run_config(record: dict[str, Any]) -> LearnerConfig:
 def saved_settings(run_dir: str | os.PathLike) -> tuple[specs.TaskSpec, LearnerConfig, str, int]:
     """What a resume continues with: the run's task, learner config, demonstrations path and seed."""
     run = RunDir(run_dir)
+    started = run.names() - {p.name for p in leftover_temporaries(run.path)}
+    if not run.is_run and not started:
+        raise RunError(f"nothing to resume in {run}: the training had not started (no {RUN_FILE}); run the "
+                       "same command without --resume")  # fmt: skip
     record = run.read_record()
     return (
         specs.from_dict(record["task"], str(run.file(RUN_FILE))),

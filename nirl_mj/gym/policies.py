@@ -73,8 +73,8 @@ class ExpertPolicy:
 
     def _act_batch(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
         if self.kind in _NEEDS_ENV or self._options.get("base") == "planner":
-            raise ValueError(f"the {self.kind} expert reads its environment: for a vector environment make one "
-                             "ExpertPolicy per environment, each given its own env")  # fmt: skip
+            raise ValueError(f"the {self.kind} expert reads its environment: for a vector environment "
+                             "make one ExpertPolicy per environment, each given its own env")  # fmt: skip
         n = len(observation["steps"])
         while len(self._batch) < n:  # each environment's expert keeps its own memory between steps
             self._batch.append(make_expert(self.kind, **self._options))
