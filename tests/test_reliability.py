@@ -307,3 +307,20 @@ def test_a_resume_of_a_training_that_had_not_started_says_to_run_it_without_resu
     err = capsys.readouterr().err
     assert "nothing to resume" in err and "the same command without --resume" in err
     assert main(train_args(demos, run)) == 0
+
+
+def test_a_second_writer_of_a_dataset_or_a_main_job_is_refused(tmp_path, capsys):
+    demos, main_out = tmp_path / "d.npz", tmp_path / "main"
+    commands = {demos: ["demos", "--episodes", "1", "--out", str(demos), "--quiet", *TINY],
+                main_out: ["run", "--demos", "1", "--episodes", "1", "--tests", "1", "--out", str(main_out),
+                           "--quiet", *TINY]}  # fmt: skip
+    for target, argv in commands.items():
+        process, pid = hold(target, tmp_path)
+        try:
+            assert main(argv) == 2
+            assert f"is being written by process {pid}" in capsys.readouterr().err
+            assert not target.exists()
+        finally:
+            process.send_signal(signal.SIGKILL)
+            process.wait()
+        (tmp_path / "ready").unlink()

@@ -15,6 +15,7 @@ from tqdm import tqdm
 
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
 from nirl_mj.experiments import compare, suite, sweep
@@ -127,6 +128,11 @@ def cmd_rollout(args: argparse.Namespace) -> int:
 
 
 def cmd_demos(args: argparse.Namespace) -> int:
+    with DirectoryLock(args.out, "demos"):  # one writer of the dataset file
+        return _demos(args)
+
+
+def _demos(args: argparse.Namespace) -> int:
     out = _check_output(args.out, args.overwrite)
     if args.rerun:
         _check_output(args.rerun, args.overwrite)

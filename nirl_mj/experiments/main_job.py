@@ -29,6 +29,7 @@ from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
 from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import RunDir
 from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
 from nirl_mj.experiments.evaluation import evaluate
@@ -100,6 +101,7 @@ def main_cell(job: RunJob, test_task: specs.TaskSpec, paths_file: str) -> dict:
     return metrics
 
 
+@writes("main job")  # one writer of OUT
 def main_job(
     out: str | Path,
     experiment: Experiment,

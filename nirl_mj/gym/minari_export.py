@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.trajectory import Trajectory, task_json
 from nirl_mj.sim.spec import SpecError, from_dict
 from nirl_mj.sim.task import Outcome
@@ -48,9 +49,6 @@ def export_minari(
     """Writes ``trajectories`` (one task) as the local Minari dataset ``dataset_id``
     (``namespace/env/name-vN``, e.g. ``nirl_mj/navigate/sensor-v0``); returns the
     ``MinariDataset``. Refuses an existing dataset unless ``overwrite``."""
-    import gymnasium
-    import minari
-
     _check_id(dataset_id)
     if not trajectories:
         raise MinariError("the dataset holds no trajectory")
@@ -61,6 +59,16 @@ def export_minari(
     from minari.storage.datasets_root_dir import get_dataset_path
 
     final = get_dataset_path(dataset_id)
+    with DirectoryLock(final, "export"):  # one writer of the dataset
+        return _export(trajectories, dataset_id, overwrite, on_episode, final)
+
+
+def _export(trajectories, dataset_id: str, overwrite: bool, on_episode, final: Path):
+    """:func:`export_minari` under its lock."""
+    import gymnasium
+    import minari
+    from minari.storage.datasets_root_dir import get_dataset_path
+
     with warnings.catch_warnings():  # Minari warns of the half dataset we look for
         warnings.simplefilter("ignore")
         exists = dataset_id in minari.list_local_datasets()
