@@ -797,3 +797,11 @@ def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_
     assert main([*run, "--task", str(new_spec), "--out", str(tmp_path / "third"), "--reuse", str(new)]) == 0
     again = json.loads((tmp_path / "third" / "cells" / "NIRL-run000.json").read_text())
     assert again["reused_from"] == str(new.resolve()) and "reused_as" not in again
+
+
+def test_the_index_of_experiment_files_is_what_the_files_say():
+    """docs/EXPERIMENTS.md's index is rendered from tasks/ (docs/scripts/experiment_index.py --write)."""
+    import runpy
+
+    index = runpy.run_path(str(ROOT / "docs" / "scripts" / "experiment_index.py"))
+    assert index["current"]() == index["render"](), "run: python docs/scripts/experiment_index.py --write"

@@ -1,0 +1,74 @@
+"""The index of experiment files in docs/EXPERIMENTS.md: which file backs which claim, run by which
+command, with its results where.
+
+Rendered from the files themselves: every TOML under tasks/ with a top-level ``kind`` (an experiment
+file), its ``description``, the command that runs it, its stored results (docs/results/NAME/, or
+docs/results/suites/NAME.* for a suite, or the folder the tests' RECORDED table names) and the docs
+that cite it. ``--write`` replaces the index between its markers in docs/EXPERIMENTS.md;
+tests/test_experiments.py checks that the page holds what this renders.
+
+    python docs/scripts/experiment_index.py [--write]
+"""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGE = ROOT / "docs" / "EXPERIMENTS.md"
+START, END = (
+    "<!-- experiment index: start (docs/scripts/experiment_index.py) -->",
+    "<!-- experiment index: end -->",
+)
+RECORDED = {"table1_v2": "table1_extended", "table1": "table1_fair", "table1_nirl": "table1_fair"}
+"""A file whose results folder has another name (as tests/test_experiments.py's RECORDED)."""
+DOCS = ("README.md", "docs/RESULTS.md", "docs/ALGORITHM.md", "docs/PERFORMANCE.md", "docs/EXTENDING.md")
+
+
+def results_of(path: Path, kind: str) -> str:
+    name = path.stem
+    if kind == "suite":
+        found = sorted((ROOT / "docs" / "results" / "suites").glob(f"{name}.*"))
+        return ", ".join(f"`{p.relative_to(ROOT)}`" for p in found if p.suffix in (".csv", ".md")) or "-"
+    folder = ROOT / "docs" / "results" / RECORDED.get(name, name)
+    return f"`{folder.relative_to(ROOT)}/`" if folder.is_dir() else "-"
+
+
+def cited_in(path: Path) -> str:
+    rel = str(path.relative_to(ROOT))
+    return ", ".join(d for d in DOCS if rel in (ROOT / d).read_text(encoding="utf-8")) or "-"
+
+
+def render() -> str:
+    rows = ["| file | kind | what | run | results | cited in |", "|---|---|---|---|---|---|"]
+    for path in sorted((ROOT / "tasks").rglob("*.toml")):
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        kind = data.get("kind")
+        if kind is None:
+            continue  # a task file
+        rel = path.relative_to(ROOT)
+        what = str(data.get("description", "")).replace("|", "/")
+        rows.append(f"| `{rel}` | {kind} | {what} | `nirl-mj {kind} --task {rel}` | {results_of(path, kind)} | "
+                    f"{cited_in(path)} |")  # fmt: skip
+    return "\n".join([START, *rows, END])
+
+
+def current() -> str:
+    text = PAGE.read_text(encoding="utf-8")
+    if START not in text or END not in text:
+        return ""
+    return text[text.index(START) : text.index(END) + len(END)]
+
+
+def main() -> None:
+    index = render()
+    if "--write" in sys.argv:
+        text = PAGE.read_text(encoding="utf-8")
+        PAGE.write_text(text.replace(current(), index) if current() else text + "\n" + index + "\n")
+    print(index)
+
+
+if __name__ == "__main__":
+    main()
