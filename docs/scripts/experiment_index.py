@@ -50,8 +50,8 @@ def render() -> str:
             continue  # a task file
         rel = path.relative_to(ROOT)
         what = str(data.get("description", "")).replace("|", "/")
-        rows.append(f"| `{rel}` | {kind} | {what} | `nirl-mj {kind} --task {rel}` | {results_of(path, kind)} | "
-                    f"{cited_in(path)} |")  # fmt: skip
+        run = f"`nirl-mj {kind} --task {rel}`"
+        rows.append(f"| `{rel}` | {kind} | {what} | {run} | {results_of(path, kind)} | {cited_in(path)} |")
     return "\n".join([START, *rows, END])
 
 
