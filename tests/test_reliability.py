@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -324,3 +325,33 @@ def test_a_second_writer_of_a_dataset_or_a_main_job_is_refused(tmp_path, capsys)
             process.send_signal(signal.SIGKILL)
             process.wait()
         (tmp_path / "ready").unlink()
+
+
+def test_a_dataset_with_a_duplicate_entry_or_a_lying_header_is_one_error_line(demos, tmp_path, capsys):
+    import io
+    import zipfile
+
+    with zipfile.ZipFile(demos) as z:
+        data = {n: z.read(n) for n in z.namelist()}
+    dup, huge = tmp_path / "dup.npz", tmp_path / "huge.npz"
+    with warnings.catch_warnings(), zipfile.ZipFile(dup, "w") as z:
+        warnings.simplefilter("ignore")  # zipfile warns of the duplicate name it is asked to write
+        for name, raw in data.items():
+            z.writestr(name, raw)
+        z.writestr("actions.npy", data["features.npy"])  # a second, different "actions"
+    with zipfile.ZipFile(huge, "w") as z:
+        for name, raw in data.items():
+            if name == "features.npy":
+                array = np.lib.format.read_array(io.BytesIO(raw))
+                header = io.BytesIO()
+                claim = {"descr": array.dtype.str, "fortran_order": False, "shape": (10**12, 16)}
+                np.lib.format.write_array_header_1_0(header, claim)
+                raw = header.getvalue() + array.tobytes()
+            z.writestr(name, raw)
+    for path, needle in (
+        (dup, "holds entry 'actions.npy' twice"),
+        (huge, "claims shape (1000000000000, 16)"),
+    ):
+        assert main(["inspect", str(path)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and needle in err[0]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import zipfile
 import zlib
@@ -194,7 +195,13 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
         raise DatasetError(f"{not_npz}: it holds a single .npy array")
     arrays = {}
     with npz:
+        names = npz.zip.namelist()
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise DatasetError(f"{where}: the archive holds entry {twice[0]!r} twice; which one is meant is "
+                               "ambiguous, so the file is refused")  # fmt: skip
         for key in npz.files:
+            _check_size(npz.zip, f"{key}.npy", where)  # before numpy allocates what a header claims
             try:
                 arrays[key] = npz[key]
             except ValueError as exc:
@@ -206,6 +213,29 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             except (zipfile.BadZipFile, EOFError, OSError, zlib.error) as exc:
                 raise DatasetError(f"{where}: entry {key!r} is corrupt or truncated: {exc}") from None
     return arrays
+
+
+def _check_size(archive: zipfile.ZipFile, name: str, where: str) -> None:
+    """Refuses an entry whose .npy header claims more data than the entry holds."""
+    if name not in archive.namelist():
+        return
+    info = archive.getinfo(name)
+    try:
+        with archive.open(name) as f:
+            version = np.lib.format.read_magic(f)
+            read = (
+                np.lib.format.read_array_header_1_0
+                if version == (1, 0)
+                else np.lib.format.read_array_header_2_0
+            )
+            shape, _, dtype = read(f)
+            header = f.tell()
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        raise DatasetError(f"{where}: entry {name!r} has no valid .npy header: {exc}") from None
+    needed = math.prod(shape) * dtype.itemsize
+    if needed > info.file_size - header:
+        raise DatasetError(f"{where}: entry {name!r} claims shape {shape} ({needed} bytes) but holds "
+                           f"{info.file_size - header} bytes: corrupt")  # fmt: skip
 
 
 def _from_arrays(a: Mapping[str, np.ndarray], where: str) -> list[Trajectory]:
