@@ -219,20 +219,28 @@ def test_continuous_actions_are_a_bounded_twist_through_the_wheel_controller():
 def test_the_rule_and_ppo_drive_with_continuous_actions():
     from nirl_mj.gym.policies import reference_policy
 
+    sb3 = pytest.importorskip("stable_baselines3")
+
     gym_set = [*SMALL, 'control.actions="continuous"']
     env = gymnasium.make("nirl_mj/Navigate-v0", set=[*gym_set, "arena.static_obstacles=0"])
-    assert env.action_space == gymnasium.spaces.Box(np.float32([-2, -2.0943951]), np.float32([2, 2.0943951]))
+    assert env.action_space == gymnasium.spaces.Box(-1.0, 1.0, (2,), np.float32)  # normalised (issue 33)
+    assert env.unwrapped.action_scale == pytest.approx([2.0, 2.0943951])  # m/s, rad/s of an action of 1
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        # Physical units (m/s, rad/s) by design; wrap in RescaleAction for [-1, 1].
-        warnings.filterwarnings("ignore", message=".*symmetric and normalized space")
+        warnings.simplefilter("error")  # both checkers, no warning
         from gymnasium.utils.env_checker import check_env
+        from stable_baselines3.common.env_checker import check_env as sb3_check
 
         check_env(env.unwrapped)
+        sb3_check(env.unwrapped)
     _, outcome = _gym_actions(env, reference_policy("rule", env=env), 0)
     assert outcome == "target"
+    env.reset(seed=2)
+    beyond = env.step(np.array([3.0, -7.0], np.float32))  # clipped to [1, -1]: full speed, full right turn
+    assert (
+        env.unwrapped.twist([3.0, -7.0]).tolist() == pytest.approx([2.0, -2.0943951])
+        and beyond[0] is not None
+    )
 
-    sb3 = pytest.importorskip("stable_baselines3")
     model = sb3.PPO("MultiInputPolicy", gymnasium.make("nirl_mj/Navigate-v0", set=gym_set), n_steps=64,
                     batch_size=32, n_epochs=1, seed=0, device="cpu")  # fmt: skip
     model.learn(64)

@@ -307,3 +307,22 @@ def test_a_saved_model_drives_the_documented_features_environment_through_its_lo
     obs, _ = env.reset(seed=0)
     assert policy(obs) == int(model.predict(scaled(obs), deterministic=True)[0])
     assert obs.max() > 1.0 and scaled(obs).max() <= 1.0  # the raw observation is not what the model reads
+
+
+def test_ppo_on_continuous_actions_trains_in_the_normalised_space_and_acts_in_the_tasks(tmp_path):
+    """issue 33: the continuous action space is normalised to [-1, 1]; a trained model's policy on
+    phi(s) (load_rl_policy) answers in the task's units, within its bounds."""
+    from nirl_mj import make_env
+    from nirl_mj.experiments.rl import load_rl_policy
+    from nirl_mj.sim.spec import from_dict
+
+    run = tmp_path / "ppo"
+    continuous = [*SMALL, "--set", 'control.actions="continuous"']
+    assert main(["rl", "--algo", "ppo", "--steps", "64", "--envs", "1", "--out", str(run), "--quiet",
+                 *continuous]) == 0  # fmt: skip
+    policy, record = load_rl_policy(run)
+    twist = policy(np.zeros(16, np.float32))
+    assert twist.shape == (2,) and abs(twist[0]) <= 2.0 and abs(twist[1]) <= 2.0943952  # m/s, rad/s
+    env = make_env(from_dict(record["task"], "record"), seed=0)
+    env.reset()
+    env.step(twist)  # the task takes it: within its bounds

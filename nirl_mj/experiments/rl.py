@@ -398,6 +398,18 @@ def is_rl_run(record: dict) -> bool:
     return record.get("kind") == "rl"
 
 
+def _twist_scale(model, record: dict) -> np.ndarray | None:
+    """(m/s, rad/s) of a continuous action of 1, for a model acting in the normalised space of
+    ``gym.env.NavigationEnv`` (models saved before it was normalised act in m/s and rad/s: None)."""
+    if record["task"]["control"].get("actions", "discrete") != "continuous":
+        return None
+    if not np.allclose(np.asarray(model.action_space.high, dtype=np.float64), 1.0):
+        return None
+    from nirl_mj.sim.task import continuous_action_spec
+
+    return np.asarray(continuous_action_spec(specs.from_dict(record["task"], "run record")).maximum)
+
+
 def load_rl_policy(
     run_dir: str | os.PathLike, sampled: bool = True, seed: int = 0, policy: str = "selected"
 ) -> tuple[Callable[[np.ndarray], int | np.ndarray], dict]:
@@ -436,8 +448,12 @@ def load_rl_policy(
 
         return sample, record
 
+    scale = _twist_scale(model, record)
+
     def mode(phi: np.ndarray) -> int | np.ndarray:
         action, _ = model.predict(scaled(phi), deterministic=True)
-        return action if np.ndim(action) else int(action)  # continuous: (forward, yaw rate)
+        if scale is not None:  # continuous, normalised: (forward m/s, yaw rate rad/s) for the task
+            return np.clip(action, -1.0, 1.0) * scale
+        return action if np.ndim(action) else int(action)
 
     return mode, record

@@ -14,8 +14,11 @@ the dm_env environment underneath plus the Gymnasium conventions:
 - ``info``: ``outcome`` (``"running"``, ``"target"``, ``"collision"``, ``"timeout"``,
   ``"physics_error"``), ``is_success`` (reached the target; Stable-Baselines3's Monitor and
   EvalCallback read it) and ``steps``.
-- Actions: ``Discrete(6)``, or with ``[control] actions = "continuous"`` a float32 ``Box`` (2,):
-  forward speed (m/s) and yaw rate (rad/s), held for one decision.
+- Actions: ``Discrete(6)``, or with ``[control] actions = "continuous"`` a float32 ``Box`` (2,) in
+  [-1, 1] (normalised, as Gymnasium's checker and Stable-Baselines3 ask): the forward speed as a
+  share of ``control.speed`` and the yaw rate as a share of the rate that turns 60 degrees in one
+  decision (:attr:`NavigationEnv.action_scale`, m/s and rad/s), held for one decision; a value
+  beyond [-1, 1] is clipped.
 - ``render_mode="rgb_array"``: an offscreen (EGL) frame (height, width, 3) uint8 from a camera
   of the model; ``metadata["render_fps"]`` is one frame per decision (2 at 0.5 s).
 """
@@ -84,13 +87,10 @@ class NavigationEnv(gymnasium.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.control.decision_period}
         obs_spec = self._env.observation_spec()
         self.action_space = space_of(self._env.action_spec())
+        self.action_scale: np.ndarray | None = None  # continuous: (m/s, rad/s) of an action of 1
         if isinstance(self.action_space, gymnasium.spaces.Box):
-            # float32, as Stable-Baselines3 and most agents act; the task accepts a float32 rounding
-            # beyond a bound as the bound.
-            low, high = (
-                bound.astype(np.float32) for bound in (self.action_space.low, self.action_space.high)
-            )
-            self.action_space = gymnasium.spaces.Box(low, high, (2,), np.float32)
+            self.action_scale = np.asarray(self.action_space.high, dtype=np.float64)
+            self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.observation_space = (
             space_of(obs_spec[self._keys[0]]) if self._single else dict_space(obs_spec, self._keys)
         )
@@ -127,6 +127,8 @@ class NavigationEnv(gymnasium.Env):
                 if self._ended is None
                 else "step() after the episode ended (terminated or truncated): call reset() first"
             )
+        if self.action_scale is not None:
+            action = self.twist(action)
         timestep = self.dm_env.step(action)
         self._ended = timestep.last()
         last = timestep.last()
@@ -134,6 +136,14 @@ class NavigationEnv(gymnasium.Env):
         observation = timestep.observation
         return (self._observation(observation), float(timestep.reward), terminated,
                 bool(last and not terminated), self._info(observation))  # fmt: skip
+
+    def twist(self, action) -> np.ndarray:
+        """A normalised continuous action as the task's (forward speed m/s, yaw rate rad/s), clipped
+        to [-1, 1] first."""
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (2,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action {action!r}: expected two finite numbers in [-1, 1]")
+        return np.clip(a, -1.0, 1.0) * self.action_scale
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

@@ -90,7 +90,7 @@ def reference_policy(name: str, env=None):
     """A reference policy of :data:`nirl_mj.experts.policies.POLICIES` (``rule``, ``forward``) as
     ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself. Given the
     ``env`` it drives, of a task with continuous actions, it acts with :func:`twist_of` its
-    discrete choice."""
+    discrete choice, normalised as the environment's action space is."""
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
@@ -100,7 +100,9 @@ def reference_policy(name: str, env=None):
     def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:
         phi = observation["features"] if isinstance(observation, Mapping) else observation
         action = int(on_phi(np.asarray(phi)))
-        return twist_of(action, task) if continuous else action
+        if not continuous:
+            return action
+        return (twist_of(action, task) / env.unwrapped.action_scale).astype(np.float32)
 
     policy.__name__ = name
     return policy
