@@ -314,3 +314,16 @@ def test_the_example_method_joins_the_comparison_and_the_leaderboard_from_outsid
     assert main(["compare", "--task", str(example), "--out", str(out), "--quiet", "--runs", "1"]) == 0
     assert main(["leaderboard", str(out), "--out", str(tmp_path / "board")]) == 0
     assert "| KNN |" in (tmp_path / "board" / "leaderboard.md").read_text()
+
+
+def test_points_computes_some_values_now_and_the_others_later(training_suite, tmp_path, capsys):
+    path, _, reference = training_suite
+    out = tmp_path / "points"
+    assert main(args(path, out, "--points", "sensor-random30")) == 0
+    done = set(cells(out))
+    assert done == {c for c in reference if c.startswith(("demonstrator-sensor-random30.", "demonstrator-any."))}
+    assert "cells are not finished yet" in (out / "suite.md").read_text()
+    assert main(args(path, out)) == 0  # the rest later, the same directory
+    assert cells(out) == reference
+    assert main(args(path, out, "--points", "sensor-random99")) == 2
+    assert "--points sensor-random99: not a value of demonstrator" in capsys.readouterr().err

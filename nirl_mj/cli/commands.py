@@ -415,9 +415,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     if args.runs is not None:
         experiment = dataclasses.replace(experiment, runs=args.runs)
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
-    only = tuple(n.strip() for n in (getattr(args, "only", None) or "").split(",") if n.strip())
+    only, points = (tuple(n.strip() for n in (getattr(args, key, None) or "").split(",") if n.strip())
+                    for key in ("only", "points"))  # fmt: skip
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
-                          getattr(args, "reuse", None), only)  # fmt: skip
+                          getattr(args, "reuse", None), only, points)  # fmt: skip
     bars: list[tqdm] = []  # made once the number of cells is known
 
     def log(text: str) -> None:

@@ -97,6 +97,10 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         p.add_argument("--only", default=None, metavar="NAMES",
                        help="comma-separated methods: compute only their cells; the tables show the "
                        "others' finished cells (not part of an experiment's identity)")  # fmt: skip
+    if name == "suite":
+        p.add_argument("--points", default=None, metavar="VALUES",
+                       help="comma-separated values of the training axis: compute only their cells; the "
+                       "tables show the others' finished cells (not part of the identity)")  # fmt: skip
     if name == "compare":
         p.add_argument("--reuse", default=None, metavar="OLD",
                        help="first copy the cells an earlier output directory OLD finished as the same "

@@ -275,6 +275,7 @@ class Execution:
     report_only: bool = False  # run nothing: report the cells already finished (a partial table)
     reuse: str | None = None  # compare: an earlier output directory whose same cells are taken
     only: tuple[str, ...] = ()  # compare: run these methods' cells only, report the others as stored
+    points: tuple[str, ...] = ()  # suite, training axis: run these values' cells only, as ``only``
 
     def __post_init__(self) -> None:
         if self.retries < 0:
@@ -355,11 +356,11 @@ class CellRunner:
         return report
 
     def run_only(self, cells: list, only: tuple[str, ...], on_start: Callable | None = None,
-                 on_done: Callable | None = None):  # fmt: skip
+                 on_done: Callable | None = None, also: Callable | None = None):  # fmt: skip
         """Runs the cells of the methods in ``only`` (every cell if it is empty; a cell's method is its
-        first argument's, a ``RunJob``); the others' stored cells join the report as a ``--report``
-        shows them. ``on_start(cells to run, already finished)``."""
-        mine = [c for c in cells if not only or c.args[0].method.name in only]
+        first argument's, a ``RunJob``) for which ``also(cell)`` holds (if given); the others' stored
+        cells join the report as a ``--report`` shows them. ``on_start(cells to run, finished)``."""
+        mine = [c for c in cells if (not only or c.args[0].method.name in only) and (also is None or also(c))]
         if on_start:
             on_start(len(mine), self.finished(mine))
         report = self.run(mine, on_done)

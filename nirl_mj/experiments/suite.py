@@ -111,6 +111,7 @@ def run_suite(
 
     execution = execution or Execution()
     execution.check_only(experiment)  # before anything is made in OUT
+    _at_points(experiment, execution)  # a bad --points too
     if execution.reuse:
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
@@ -121,13 +122,37 @@ def run_suite(
     else:
         cells = test_cells(experiment, out, execution, workers, log)
     with execution.start(out, log) as runner:
-        report = runner.run_only(cells, execution.only, on_start, on_done)
+        report = runner.run_only(
+            cells, execution.only, on_start, on_done, also=_at_points(experiment, execution)
+        )
     rows = tidy_rows(experiment, report.results)
     summary = summarise(experiment, rows)
     summary["failures"] = failure_rows(report.failures)
     summary["unfinished"] = runner.unfinished
     summary["files"] = [str(f) for f in write_outputs(out, experiment, summary, rows, report.results)]
     return summary
+
+
+def _at_points(experiment: Experiment, execution: Execution) -> Callable | None:
+    """``--points``: whether a cell is at one of the given values of the training axis (the cells that
+    hold at every value too); None without ``--points``."""
+    if not execution.points:
+        return None
+    (axis, *rest) = experiment.axes
+    if rest or not axis.trains:
+        axes = ", ".join(a.name for a in experiment.axes)
+        raise ExperimentError(
+            f"--points picks values of a training axis (demonstrations, demonstrator); "
+            f"{experiment.name} has {axes}"
+        )
+    names = [value_name(v) for v in axis.values]
+    unknown = [p for p in execution.points if p not in names]
+    if unknown:
+        raise ExperimentError(
+            f"--points {', '.join(unknown)}: not a value of {axis.name} ({', '.join(names)})"
+        )
+    wanted = {f"{axis.name}-{p}" for p in (*execution.points, ANY)}  # training_cell_id's part before "."
+    return lambda cell: cell.id.rsplit(".", 1)[0] in wanted
 
 
 def _demos(
