@@ -355,3 +355,14 @@ def test_a_dataset_with_a_duplicate_entry_or_a_lying_header_is_one_error_line(de
         assert main(["inspect", str(path)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and needle in err[0]
+
+
+@pytest.mark.parametrize("line", ["[1]", "not json", '"x"'])
+def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, tmp_path, line):
+    from nirl_mj.data.rundir import RunDir, RunError
+
+    run = copy_of(finished, tmp_path)
+    with open(run / METRICS_FILE, "a") as f:
+        f.write(line + "\n")
+    with pytest.raises(RunError, match=r"metrics.jsonl: line 4 "):
+        RunDir(run).read_metrics()

@@ -321,7 +321,9 @@ def test_points_computes_some_values_now_and_the_others_later(training_suite, tm
     out = tmp_path / "points"
     assert main(args(path, out, "--points", "sensor-random30")) == 0
     done = set(cells(out))
-    assert done == {c for c in reference if c.startswith(("demonstrator-sensor-random30.", "demonstrator-any."))}
+    assert done == {
+        c for c in reference if c.startswith(("demonstrator-sensor-random30.", "demonstrator-any."))
+    }
     assert "cells are not finished yet" in (out / "suite.md").read_text()
     assert main(args(path, out)) == 0  # the rest later, the same directory
     assert cells(out) == reference

@@ -119,8 +119,21 @@ class RunDir:
         """Every finished iteration's metrics row (none before the first). A row still being
         appended by another process (no newline yet) is left for the next read."""
         path = self.file(METRICS_FILE)
-        lines = path.read_text().splitlines(keepends=True) if path.exists() else []
-        return [json.loads(line) for line in lines if line.endswith("\n") and line.strip()]
+        lines = path.read_text(errors="replace").splitlines(keepends=True) if path.exists() else []
+        rows = []
+        for number, line in enumerate(lines, start=1):
+            if not line.endswith("\n") or not line.strip():
+                continue
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise RunError(f"{path}: line {number} is not JSON ({exc})") from None
+            if not isinstance(row, dict):
+                raise RunError(
+                    f"{path}: line {number} holds {line.strip()[:40]!r}, not an iteration's metrics"
+                )
+            rows.append(row)
+        return rows
 
     def iterations_done(self) -> int:
         """Metrics rows written so far (finished iterations, possibly one past the checkpoint)."""
