@@ -366,3 +366,47 @@ def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, 
         f.write(line + "\n")
     with pytest.raises(RunError, match=r"metrics.jsonl: line 4 "):
         RunDir(run).read_metrics()
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
+    finished, demos, tmp_path_factory, capsys, data
+):
+    """Every file of a finished run and the dataset, truncated, byte-flipped or replaced by another
+    JSON shape: `eval` (the run) or `inspect` (the dataset) exits 0, or 2 with one error line and the
+    directory unchanged."""
+    import json
+    import shutil
+
+    tmp = tmp_path_factory.mktemp("any")
+    run = copy_of(finished, tmp)
+    dataset = tmp / "d.npz"
+    shutil.copy(demos, dataset)
+    (run / "eval.json").write_text('{"a": {"success_rate": 0.5}}')
+    name = data.draw(st.sampled_from([RUN_FILE, METRICS_FILE, CHECKPOINT_FILE, POLICY_FILE, "reward.json",
+                                      "eval.json", "dataset"]))  # fmt: skip
+    path = dataset if name == "dataset" else run / name
+    raw = bytearray(path.read_bytes())
+    how = data.draw(st.sampled_from(["truncate", "flip", "json"]))
+    if how == "truncate":
+        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
+    elif how == "flip":
+        raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
+    else:
+        raw = bytearray(
+            json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()
+        )
+    path.write_bytes(bytes(raw))
+    capsys.readouterr()
+    before = digests(run)
+    argv = (
+        ["inspect", str(dataset)]
+        if name == "dataset"
+        else ["eval", "--run", str(run), "--tests", "1", "--quiet"]
+    )
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code in (0, 2) and "Traceback" not in err, err
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1 and digests(run) == before
