@@ -139,3 +139,13 @@ def test_minari_episodes_carry_the_outcome_and_is_success_in_their_infos(exporte
         assert infos["outcome"][-1].decode() == trajectory.outcome
         assert bool(infos["is_success"][-1]) == trajectory.success and not any(infos["is_success"][:-1])
         assert list(infos["steps"]) == list(range(len(trajectory) + 1))
+
+
+def test_an_export_killed_between_its_two_renames_loses_neither_dataset(exported, capsys):
+    from minari.storage.datasets_root_dir import get_dataset_path
+
+    final = get_dataset_path(ID)
+    final.rename(final.with_name(f".{final.name}.old-99999-abcd"))  # set aside, the new one not yet in place
+    assert main(["export", str(exported), "--to", "minari", "--id", ID, "--quiet"]) == 2
+    assert "exists; pass --overwrite" in capsys.readouterr().err  # the old one is back
+    assert minari.load_dataset(ID).total_episodes == 3

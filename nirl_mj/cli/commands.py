@@ -128,6 +128,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
 
 
 def cmd_demos(args: argparse.Namespace) -> int:
+    _check_output(args.out, args.overwrite)  # a bad --out is refused before the lock beside it is made
     with DirectoryLock(args.out, "demos"):  # one writer of the dataset file
         return _demos(args)
 

@@ -34,25 +34,31 @@ class DirectoryLock:
         while True:
             fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
-                os.close(fd)
-                raise LockedError(
-                    f"{self.path} is being written by process {holder} (another nirl-mj "
-                    f"{self.what}); wait for it to end, or choose another output"
-                ) from None
-            try:  # the file a releasing holder removed is not the lock any more: take the new one
-                same = os.stat(self.lock_file).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                break
+                if self._take(fd):
+                    os.ftruncate(fd, 0)
+                    os.pwrite(fd, str(os.getpid()).encode(), 0)
+                    self._fd = fd
+                    return self
+            except BaseException:
+                os.close(fd)  # an error never leaves the descriptor open (and so the lock held)
+                raise
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
-        self._fd = fd
-        return self
+
+    def _take(self, fd: int) -> bool:
+        """Locks ``fd``; False if its file is no longer the lock file (a releasing holder removed it:
+        the next attempt opens the new one)."""
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+            raise LockedError(
+                f"{self.path} is being written by process {holder} (another nirl-mj "
+                f"{self.what}); wait for it to end, or choose another output"
+            ) from None
+        try:
+            return os.stat(self.lock_file).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            return False
 
     def release(self) -> None:
         """Removes the lock file (while still holding it, so no one else holds a removed one) and
@@ -83,3 +89,29 @@ def writes(what: str) -> Callable[[Callable], Callable]:
         return locked
 
     return decorate
+
+
+def process_folder(root: str | os.PathLike, prefix: str) -> Path:
+    """A new folder ``root/PREFIX<pid>-<random>`` owned by this process, after removing the folders of
+    that prefix whose process has ended (a killed process runs no clean-up)."""
+    import secrets
+    import shutil
+
+    root = Path(root)
+    for folder in root.glob(f"{prefix}*"):
+        pid = folder.name[len(prefix) :].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+    folder = root / f"{prefix}{os.getpid()}-{secrets.token_hex(4)}"
+    folder.mkdir(parents=True)
+    return folder
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's: alive
+        return True
+    return True

@@ -11,7 +11,7 @@ directory (cell results travel as JSON; a dataset file keeps every array exact).
 
 from __future__ import annotations
 
-import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.lock import process_folder
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.executors import Cell, Executor, Failure
 from nirl_mj.experiments.seeds import episode_seed
@@ -28,16 +29,6 @@ from nirl_mj.sim.spec import TaskSpec
 
 SCRATCH = "nirl-mj-demos-"
 """The prefix of a collection's scratch folder in the temporary directory, followed by its process id."""
-
-
-def _remove_orphaned_scratch() -> None:
-    """Removes the scratch folders of collections whose process has died (killed: no clean-up ran)."""
-    import shutil
-
-    for folder in Path(tempfile.gettempdir()).glob(f"{SCRATCH}*"):
-        pid = folder.name[len(SCRATCH) :].split("-", 1)[0]
-        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
-            shutil.rmtree(folder, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -123,10 +114,14 @@ def collect(
         if on_episode:
             on_episode(done[cell_id])
 
-    _remove_orphaned_scratch()
-    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH}{os.getpid()}-") as folder:
-        cells = [Cell(f"demo-{i:06d}", demo_cell, (task, expert, seed, i, folder)) for i in range(episodes)]
+    folder = process_folder(tempfile.gettempdir(), SCRATCH)  # those of killed collections go
+    try:
+        cells = [
+            Cell(f"demo-{i:06d}", demo_cell, (task, expert, seed, i, str(folder))) for i in range(episodes)
+        ]
         executor = "serial" if workers == 1 or episodes == 1 else "local"
         with Executor(executor, min(workers, episodes), retries=0) as runner:
             runner.run(cells, on_done=arrived)
         return [done[cell.id] for cell in cells]
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)

@@ -77,7 +77,12 @@ def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
         if differ:
             raise ExperimentError(f"{d} and {first_dir} differ in {', '.join(differ)}: their test arenas or "
                                   "protocol are not the same, so their results do not compare")  # fmt: skip
-        for m in identity.get("methods", []):
+        methods_of = identity.get("methods")
+        if not isinstance(methods_of, list) or not all(
+            isinstance(m, dict) and "name" in m for m in methods_of
+        ):
+            raise ExperimentError(f"{d}/experiment.json: its methods cannot be read")
+        for m in methods_of:
             name = m["name"]
             if name in methods and methods[name] != m:
                 raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name]} (settings "
@@ -163,6 +168,10 @@ def write_leaderboard(
     """Merges ``dirs`` into OUT (module docstring); returns the Markdown table and the files written.
     OUT must be new, empty, or (with ``overwrite``) an earlier leaderboard's."""
     rows, source = merge(list(dirs))
+    if not rows:
+        raise ExperimentError(
+            f"{', '.join(map(str, dirs))}: no finished run to rank (run the experiments first)"
+        )
     out = Path(out)
     if out.exists():
         held = {p.name for p in out.iterdir()} if out.is_dir() else {"?"}

@@ -21,7 +21,8 @@ or an instance) has, in plain Python, NumPy and Gymnasium types (docs/EXTENDING.
   decisions it may drive in all its environments together; ``workdir`` a directory of its own
   (checkpoints); ``policy(observation) -> action`` in 0..5.
 
-The protocol keeps the rest: the environments draw their arenas from the run's training stream
+The protocol keeps the rest (for a method that plays by the interface: one that reaches past the
+wrapper, ``env.unwrapped``, is not stopped): the environments draw their arenas from the run's training stream
 (a ``reset(seed=S)`` draws the stream's next arena, as Stable-Baselines3 runs do; a test arena is
 refused), give no reward and no outcome unless ``reads`` says so, and stop at the budget; the
 arenas they drew are checked against the test arenas; the policy is tested by the protocol. A method
@@ -146,6 +147,12 @@ class _Budget:
                 "reset() draws the run's training arenas; a method never chooses one"
             )
 
+    def __reduce__(self):
+        # a process vector environment would copy the budget and the arena stream into each worker
+        # (the budget multiplied, the same arenas drawn, none of them recorded here)
+        raise MethodError(f"method {self.name!r}: its environments run in this process (a process vector "
+                          "environment would copy its budget and arenas); use a synchronous one")  # fmt: skip
+
     def spend(self) -> None:
         if self.left <= 0:
             raise MethodError(f"method {self.name!r} drove more than its budget of {self.total} decisions")
@@ -215,6 +222,16 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     budget = _Budget(job.method.name, job.method.steps, job.seed, frozenset(job.test_seeds))
     workdir = Path(job.run_dir)
     workdir.mkdir(parents=True, exist_ok=True)
-    policy = method.train(demonstrations=demos, make_env=lambda: protocol_env(job.task, budget, reads),
-                          budget=job.method.steps, seed=job.seed, workdir=str(workdir))  # fmt: skip
+    made = []
+
+    def make_env():
+        made.append(protocol_env(job.task, budget, reads))
+        return made[-1]
+
+    try:
+        policy = method.train(demonstrations=demos, make_env=make_env, budget=job.method.steps, seed=job.seed,
+                              workdir=str(workdir))  # fmt: skip
+    finally:
+        for env in made:
+            env.close()
     return checked_policy(job.method.name, policy, demos["observations"][0]), list(budget.stream.used)

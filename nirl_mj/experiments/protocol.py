@@ -292,7 +292,7 @@ class Execution:
 
         return CellRunner(
             Executor(self.executor, self.workers, self.address, self.retries),
-            CellStore(out / "cells", check=_cell_problem),
+            CellStore(out / "cells", check=cell_problem),
             self.report_only,
             log=log,
         )
@@ -318,7 +318,7 @@ class Execution:
             )
 
 
-def _cell_problem(result) -> str | None:
+def cell_problem(result) -> str | None:
     """Why a stored cell cannot be a finished cell of an experiment (it is then computed again): not a
     JSON object, no evaluation in it (but a sweep's training cell), or metrics out of their ranges
     (``outcomes.metrics_problem``)."""

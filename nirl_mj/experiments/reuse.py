@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from nirl_mj.experiments.definition import Experiment, ExperimentError
-from nirl_mj.experiments.protocol import EXPERIMENT_FILE, RunJob, resolved_learners, run_seed
+from nirl_mj.experiments.protocol import EXPERIMENT_FILE, RunJob, cell_problem, resolved_learners, run_seed
 
 SHARED_KEYS = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "obstacles", "speeds",
                "test_domain", "demos_per_run")  # fmt: skip
@@ -164,7 +164,7 @@ def reuse_cells(
     if not same_arrays(old / "demos.npz", out / "demos.npz"):
         raise ExperimentError(f"--reuse {old}: its demonstrations differ from {out / 'demos.npz'}")
     sources, tests_match = method_sources(saved, experiment), same_tests(saved, experiment, out / "demos.npz")
-    source, target, taken = CellStore(old / "cells"), CellStore(out / "cells"), []
+    source, target, taken = CellStore(old / "cells", check=cell_problem), CellStore(out / "cells"), []
     for (name, run), job in jobs.items():
         ident = cell_id(name, run)
         found = [m for m in sources[name] if source.load(cell_id(m, run)) is not None]
@@ -240,7 +240,8 @@ def restore_published(
     if runs is not None and not set(runs) & set(planned):
         raise ExperimentError(f"runs {runs.start}-{runs.stop - 1}: none is a run of this experiment "
                               f"(runs {planned[0]}-{planned[-1]})")  # fmt: skip
-    tests_match, store = same_tests(saved, experiment, out / "demos.npz"), CellStore(out / "cells")
+    tests_match = same_tests(saved, experiment, out / "demos.npz")
+    store = CellStore(out / "cells", check=cell_problem)
     chosen, other = [], set()
     for (name, run), job in jobs.items():
         wanted = rename.get(name, name)

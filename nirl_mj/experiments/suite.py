@@ -32,6 +32,7 @@ from typing import Any
 
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.experiments import tidy
+from nirl_mj.experiments.compare import cell_id
 from nirl_mj.experiments.definition import Axis, Experiment, ExperimentError, MethodSpec, value_name
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
@@ -66,6 +67,8 @@ def reads_demonstrations(method: MethodSpec, axis: Axis) -> bool:
         return True
     if method.kind == "rl":
         return method.algo in ADVERSARIAL
+    if method.kind == "plugin":
+        return "demonstrations" in method.declared_reads
     return method.kind == "expert" and axis.name == "demonstrator"
 
 
@@ -74,8 +77,7 @@ def training_cell_id(axis: str, value: str, method: str, run: int) -> str:
     return f"{axis}-{value}.{method}-run{run:03d}"
 
 
-def test_cell_id(method: str, run: int) -> str:
-    return f"{method}-run{run:03d}"
+test_cell_id = cell_id  # a test axis's cell: one per (method, run), as a comparison's
 
 
 def point_key(axis: str, value: Any) -> str:

@@ -22,7 +22,7 @@ import numpy as np
 
 from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.data.dataset import dataset_digest, load_dataset
-from nirl_mj.data.lock import writes
+from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
@@ -109,7 +109,6 @@ def _rollouts(env: dm_env.Environment) -> Callable[[Agent, Sequence[int]], list[
     return lambda agent, seeds: [run_episode(env, agent, s) for s in seeds]
 
 
-@writes("training")
 def train(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
@@ -122,6 +121,20 @@ def train(
     """Trains (or resumes) the configured method in ``run_dir``; returns the run record. One writer at
     a time (``nirl_mj.data.lock``); a resume checks the whole checkpoint and its agreement with the
     record and the metrics before it changes anything."""
+    with DirectoryLock(run_dir, "training"):
+        return _train(run_dir, task, demos_path, config, seed, resume, on_metrics)
+
+
+def _train(
+    run_dir: str | os.PathLike,
+    task: specs.TaskSpec,
+    demos_path: str | os.PathLike,
+    config: LearnerConfig,
+    seed: int,
+    resume: bool,
+    on_metrics: Callable[[Metrics], None] | None = None,
+) -> dict:
+    """:func:`train` holding the run's lock."""
     run = RunDir(run_dir)
     if run.path.is_dir():
         run.remove_leftovers()  # a killed process's temporary files (we hold the lock: no writer runs)
@@ -167,7 +180,7 @@ def train(
         state = run.read_checkpoint()
         try:
             learner.load_state(state)
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, KeyError, TypeError, IndexError) as exc:
             raise RunError(f"{run.file(CHECKPOINT_FILE)} cannot be resumed: {exc}; the run is left as it "
                            "is: train it again in another --out") from None  # fmt: skip
         rows = run.iterations_done()
@@ -233,8 +246,12 @@ def ensure_trained(
 
     Finished means the final record is written (:func:`finish` writes it last). A directory
     killed before its first checkpoint holds only the files :func:`train` starts with and is
-    started afresh; one holding anything else is refused."""
-    run = RunDir(run_dir)
+    started afresh; one holding anything else is refused. Everything under the run's lock."""
+    with DirectoryLock(run_dir, "training"):
+        return _ensure_trained(RunDir(run_dir), task, demos_path, config, seed)
+
+
+def _ensure_trained(run: RunDir, task, demos_path, config: LearnerConfig, seed: int) -> dict:
     if run.is_finished:
         return run.read_record()
     run.remove_leftovers()
@@ -244,7 +261,7 @@ def ensure_trained(
         if extra:
             raise RunError(f"{run} holds {sorted(extra)} but no {CHECKPOINT_FILE}; choose another directory")
         shutil.rmtree(run.path)  # holds only files a training writes, and no checkpoint to resume
-    return train(run.path, task, demos_path, config, seed, resume=resume)
+    return _train(run.path, task, demos_path, config, seed, resume)
 
 
 def validation_seeds(config: LearnerConfig, seed: int) -> list[int]:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nirl_mj.data.lock import DirectoryLock
+from nirl_mj.data.lock import DirectoryLock, process_folder
 from nirl_mj.data.trajectory import Trajectory, task_json
 from nirl_mj.sim.spec import SpecError, from_dict
 from nirl_mj.sim.task import Outcome
@@ -60,6 +60,7 @@ def export_minari(
 
     final = get_dataset_path(dataset_id)
     with DirectoryLock(final, "export"):  # one writer of the dataset
+        _restore_old(final)
         return _export(trajectories, dataset_id, overwrite, on_episode, final)
 
 
@@ -113,14 +114,9 @@ followed by its process id."""
 
 
 def _staging(root) -> Path:
-    """A new hidden folder under the datasets root for one export; removes those of dead exports."""
-    for old in root.glob(f"{STAGING}*"):
-        pid = old.name[len(STAGING) :].split("-", 1)[0]
-        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
-            shutil.rmtree(old, ignore_errors=True)  # killed while writing: never a dataset
-    folder = root / f"{STAGING}{os.getpid()}-{secrets.token_hex(4)}"
-    folder.mkdir(parents=True)
-    return folder
+    """A new hidden folder under the datasets root for one export; removes those of dead exports
+    (killed while writing: never a dataset)."""
+    return process_folder(root, STAGING)
 
 
 @contextlib.contextmanager
@@ -143,10 +139,25 @@ def _move_into_place(new: Path, final: Path) -> None:
     if not final.exists():
         os.rename(new, final)
         return
-    trash = final.parent / f"{STAGING}{os.getpid()}-old-{secrets.token_hex(4)}"
+    trash = _old_copies(final)[0].with_name(f".{final.name}.old-{os.getpid()}-{secrets.token_hex(4)}")
     os.rename(final, trash)
     os.rename(new, final)
     shutil.rmtree(trash, ignore_errors=True)
+
+
+def _old_copies(final: Path) -> list[Path]:
+    """The old datasets of ``final`` set aside by :func:`_move_into_place` (a placeholder path first,
+    for the name of a new one): one is left only by an export killed between its two renames."""
+    return [final.parent / f".{final.name}.old", *sorted(final.parent.glob(f".{final.name}.old-*"))]
+
+
+def _restore_old(final: Path) -> None:
+    """Puts back the old dataset an export killed between its two renames left aside (``final``
+    missing): never both lost."""
+    if not final.exists():
+        for old in _old_copies(final)[1:]:
+            os.rename(old, final)
+            break
 
 
 def _env_id(task: dict) -> str:

@@ -362,6 +362,15 @@ class IrlLoop:
         sizes = field("replay_sizes")
         if sizes.ndim != 1 or not np.issubdtype(sizes.dtype, np.integer) or np.any(sizes < 0):
             raise ValueError("replay_sizes: not a list of counts")
+        rows = int(sizes.sum())
+        for name in (k for k in state if k.startswith("replay_") and k != "replay_sizes"):
+            value = np.asarray(state[name])
+            if value.ndim == 0 or value.shape[0] != rows:
+                raise ValueError(
+                    f"{name}: {value.shape[0] if value.ndim else 0} rows, replay_sizes say {rows}"
+                )
+            if np.issubdtype(value.dtype, np.floating) and not np.all(np.isfinite(value)):
+                raise ValueError(f"{name}: not all finite numbers")
         try:
             json.loads(str(field("rng")))
             bool(field("stopped"))
