@@ -9,7 +9,9 @@ method):
 - how much of the sensor expert's success each keeps where it was never trained;
 - where the first learner (NIRL) and behaviour cloning differ, paired.
 
-    python docs/scripts/suite_reading.py [DIR]     (DIR: where the CSVs are, default docs/results/suites)
+    python docs/scripts/suite_reading.py [DIR] [--write]
+        DIR: where the CSVs are (default docs/results/suites); --write: replace the reading between its
+        markers in docs/RESULTS.md (tests/test_suite.py checks that the page holds what this renders)
 """
 
 from __future__ import annotations
@@ -110,16 +112,37 @@ def versus_clone(name: str, rows: list[dict]) -> list[str]:
     return [*out, ""]
 
 
-def main() -> None:
-    folder = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).parents[1] / "results" / "suites")
+PAGE = Path(__file__).parents[1] / "RESULTS.md"
+START, END = "<!-- suite reading: start (docs/scripts/suite_reading.py) -->", "<!-- suite reading: end -->"
+
+
+def render(folder: Path) -> str:
+    parts = []
     readers = {"demos": demos_reading, "quality": quality_reading, "transfer": transfer_reading}
     for name, reading in readers.items():
         path = folder / f"{name}.csv"
         if not path.is_file():
-            print(f"({path}: not computed yet)\n")
+            parts.append(f"({name}: not computed yet)\n")
             continue
         rows = read(path)
-        print("\n".join([*reading(rows), "", *versus_clone(name, rows)]))
+        parts.append("\n".join([*reading(rows), "", *versus_clone(name, rows)]))
+    return "\n".join([START, *parts, END])
+
+
+def current() -> str:
+    text = PAGE.read_text(encoding="utf-8")
+    return text[text.index(START) : text.index(END) + len(END)] if START in text and END in text else ""
+
+
+def main() -> None:
+    args = [a for a in sys.argv[1:] if a != "--write"]
+    folder = Path(args[0]) if args else Path(__file__).parents[1] / "results" / "suites"
+    reading = render(folder)
+    if "--write" in sys.argv:
+        if not current():
+            raise SystemExit(f"{PAGE}: no markers {START} ... {END}")
+        PAGE.write_text(PAGE.read_text(encoding="utf-8").replace(current(), reading))
+    print(reading)
 
 
 if __name__ == "__main__":
