@@ -328,14 +328,15 @@ def curve_plot(path: Path, summary: dict, experiment: Experiment, axis: Axis) ->
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     names = [value_name(v) for v in axis.values]
     x = list(range(len(names)))
-    for k, method in enumerate(experiment.methods):
+    drawn = 0  # colours go to the methods with a result, so that no two drawn ones share one
+    for method in experiment.methods:
         found = {
             p["value"]: p for p in summary["points"] if p["axis"] == axis.name and p["method"] == method.name
         }
         done = [(i, found[n]) for i, n in enumerate(names) if found[n].get("runs")]
         if not done:
             continue
-        colour = colours[k % len(colours)]
+        colour, drawn = colours[drawn % len(colours)], drawn + 1
         flat = done[0][1]["flat"]
         xs = [x[0] - 0.2, x[-1] + 0.2] if flat else [i for i, _ in done]
         ys = [done[0][1]] * 2 if flat else [p for _, p in done]
