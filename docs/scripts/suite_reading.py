@@ -45,6 +45,17 @@ def interval(a: dict[int, float], b: dict[int, float]) -> str:
     return f"{100 * d['mean']:+.1f} [{100 * d['ci'][0]:+.1f}, {100 * d['ci'][1]:+.1f}] (n = {len(runs)})"
 
 
+def share(part: dict[int, float], whole: dict[int, float]) -> str:
+    """The mean of ``part`` as a share of the mean of ``whole``, over the runs both have (n in brackets
+    when fewer than 5)."""
+    runs = sorted(set(part) & set(whole))
+    total = sum(whole[r] for r in runs)
+    if not runs or total <= 0:
+        return "-"
+    n = f" (n = {len(runs)})" if len(runs) < 5 else ""
+    return f"{100 * sum(part[r] for r in runs) / total:.0f} %{n}"
+
+
 def values(rows: list[dict], axis: str) -> list[str]:
     return list(dict.fromkeys(r["value"] for r in rows if r["axis"] == axis))
 
@@ -74,11 +85,8 @@ def quality_reading(rows: list[dict]) -> list[str]:
            "sensor expert (the demonstrator's own success in the `expert` row):", "",
            "| method | " + " | ".join(flawed) + " |", "|---|" + "---|" * len(flawed)]  # fmt: skip
     for m in [*learners(rows), "expert"]:
-        clean = mean(success(rows, "demonstrator", "sensor", m))
-        cells = []
-        for v in flawed:
-            s = success(rows, "demonstrator", v, m)
-            cells.append(f"{100 * mean(s) / clean:.0f} %" if s and clean > 0 else "-")
+        clean = success(rows, "demonstrator", "sensor", m)
+        cells = [share(success(rows, "demonstrator", v, m), clean) for v in flawed]
         out.append(f"| {m} | " + " | ".join(cells) + " |")
     return out
 
@@ -94,10 +102,7 @@ def transfer_reading(rows: list[dict]) -> list[str]:
         "|---|" + "---|" * len(points),
     ]
     for m in learners(rows):
-        cells = []
-        for a, v in points:
-            expert, s = mean(success(rows, a, v, "expert")), success(rows, a, v, m)
-            cells.append(f"{100 * mean(s) / expert:.0f} %" if s and expert > 0 else "-")
+        cells = [share(success(rows, a, v, m), success(rows, a, v, "expert")) for a, v in points]
         out.append(f"| {m} | " + " | ".join(cells) + " |")
     return out
 
