@@ -106,126 +106,71 @@ def export_result(out: Path) -> dict:
 def commands(
     work: Path,
 ) -> dict[str, tuple[Callable[[Path], list[str]], Callable[[Path], list[str]], Callable]]:
-    """Per command: the first call, the call after a kill, and what its results are."""
+    """Per command: the first call, the call after a kill (the first with the flags a user adds to
+    rerun it), and what its results are."""
     demos = work / "demos.npz"
     spec = work / "experiment.toml"
     spec.write_text(EXPERIMENT)
     nirl = [sys.executable, "-m", "nirl_mj.cli"]
-    todo_first: dict[str, Callable[[Path], list[str]]] = {}
-    todo = {
-        "train": (
-            lambda o: [
-                *nirl,
-                "train",
-                "--demos",
-                str(demos),
-                "--out",
-                str(o),
-                "--episodes",
-                "3",
-                "--quiet",
-                *TASK,
-                *LEARNER,
-            ],  # fmt: skip
-            # as the refusal says: --resume once the run has started (its run.json), else the same command
-            lambda o: (
-                [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume", "--quiet"]
-                if (o / "run.json").is_file()
-                else todo_first["train"](o)
-            ),
-            train_result,
-        ),
-        "compare": (
-            lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--quiet", "--workers", "2"],
-            lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--quiet", "--workers", "2"],
-            compare_result,
-        ),
-        "demos": (
-            lambda o: [
-                *nirl,
-                "demos",
-                "--episodes",
-                "3",
-                "--seed",
-                "4",
-                "--workers",
-                "2",
-                "--out",
-                str(o),
-                "--quiet",
-                *TASK,
-            ],  # fmt: skip
-            lambda o: [
-                *nirl,
-                "demos",
-                "--episodes",
-                "3",
-                "--seed",
-                "4",
-                "--workers",
-                "2",
-                "--out",
-                str(o),
-                "--quiet",
-                "--overwrite",
-                *TASK,
-            ],  # fmt: skip
-            demos_result,
-        ),
-        "run": (
-            lambda o: [
-                *nirl,
-                "run",
-                "--demos",
-                "2",
-                "--episodes",
-                "2",
-                "--tests",
-                "2",
-                "--workers",
-                "2",
-                "--out",
-                str(o),
-                "--quiet",
-                *TASK,
-            ],  # fmt: skip
-            lambda o: [
-                *nirl,
-                "run",
-                "--demos",
-                "2",
-                "--episodes",
-                "2",
-                "--tests",
-                "2",
-                "--workers",
-                "2",
-                "--out",
-                str(o),
-                "--quiet",
-                "--resume",
-                *TASK,
-            ],  # fmt: skip
-            run_result,
-        ),
-        "export": (
-            lambda o: [*nirl, "export", str(demos), "--to", "minari", "--id", o.name, "--quiet"],
-            lambda o: [
-                *nirl,
-                "export",
-                str(demos),
-                "--to",
-                "minari",
-                "--id",
-                o.name,
-                "--quiet",
-                "--overwrite",
-            ],
-            export_result,
-        ),
+    first = {
+        "train": lambda o: [
+            *nirl,
+            "train",
+            "--demos",
+            str(demos),
+            "--out",
+            str(o),
+            "--episodes",
+            "3",
+            *TASK,
+            *LEARNER,
+        ],  # fmt: skip
+        "compare": lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--workers", "2"],
+        "demos": lambda o: [
+            *nirl,
+            "demos",
+            "--episodes",
+            "3",
+            "--seed",
+            "4",
+            "--workers",
+            "2",
+            "--out",
+            str(o),
+            *TASK,
+        ],  # fmt: skip
+        "run": lambda o: [
+            *nirl,
+            "run",
+            "--demos",
+            "2",
+            "--episodes",
+            "2",
+            "--tests",
+            "2",
+            "--workers",
+            "2",
+            "--out",
+            str(o),
+            *TASK,
+        ],  # fmt: skip
+        "export": lambda o: [*nirl, "export", str(demos), "--to", "minari", "--id", o.name],
     }
-    todo_first.update({name: first for name, (first, _, _) in todo.items()})
-    return todo
+
+    def train_again(o: Path) -> list[str]:
+        # as the refusal says: --resume once the run has started (its run.json), else the same command
+        if (o / "run.json").is_file():
+            return [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume"]
+        return first["train"](o)
+
+    again = {"train": train_again, "compare": first["compare"],
+             "demos": lambda o: [*first["demos"](o), "--overwrite"],
+             "run": lambda o: [*first["run"](o), "--resume"],
+             "export": lambda o: [*first["export"](o), "--overwrite"]}  # fmt: skip
+    results = {"train": train_result, "compare": compare_result, "demos": demos_result, "run": run_result,
+               "export": export_result}  # fmt: skip
+    quiet = lambda call: lambda o: [*call(o), "--quiet"]  # noqa: E731
+    return {name: (quiet(first[name]), quiet(again[name]), results[name]) for name in first}
 
 
 def main() -> None:

@@ -14,6 +14,27 @@ OPEN = spec.replace(
 )
 
 
+# The tables of a tiny experiment file: a 30 m arena with 3 obstacles on the planar drive, episodes of
+# ~30 decisions, 2 demonstrations; seconds per cell, big enough that the policies differ.
+TINY_TABLES = """
+[set.arena]
+size = [30.0, 30.0]
+start = [5.0, 5.0]
+target = [25.0, 25.0]
+static_obstacles = 3
+[set.robot]
+drive = "planar"
+[demos]
+episodes = 2
+"""
+TINY_CONFIG = """[config]
+episodes = 1
+trajectories_per_episode = 2
+validation_arenas = 2
+"""
+"""NIRL's 1 iteration of 2 rollouts, for the tiny experiments."""
+
+
 def progress(trajectories: list[Trajectory]) -> float:
     """Mean share of the start-to-target distance covered by the end of each episode (1: arrived)."""
     shares = []

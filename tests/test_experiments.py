@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TINY_CONFIG, TINY_TABLES
 
 from nirl_mj.cli import main
 from nirl_mj.experiments import kinds, protocol
@@ -32,23 +33,7 @@ from nirl_mj.learn.config import LearnerConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# A 30 m arena with 3 obstacles on the planar drive: episodes of ~30 decisions; NIRL 1-2 iterations
-# of 2 rollouts. Small enough for seconds per cell, big enough that the policies differ.
-TINY = """
-[set.arena]
-size = [30.0, 30.0]
-start = [5.0, 5.0]
-target = [25.0, 25.0]
-static_obstacles = 3
-[set.robot]
-drive = "planar"
-[demos]
-episodes = 2
-[config]
-episodes = 1
-trajectories_per_episode = 2
-validation_arenas = 2
-"""
+TINY = TINY_TABLES + TINY_CONFIG  # tests/helpers.py: seconds per cell, the policies differ
 SWEEP = """kind = "sweep"
 runs = 2
 tests = 2

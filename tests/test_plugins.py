@@ -16,6 +16,8 @@ import pytest
 
 pytest.importorskip("gymnasium", reason="the plugin adapter's environments need nirl-mj[gym]")
 
+from helpers import TINY_TABLES  # noqa: E402
+
 from nirl_mj.cli import main  # noqa: E402
 from nirl_mj.experiments import protocol  # noqa: E402
 from nirl_mj.experiments.definition import METHOD_KINDS, ExperimentError, from_dict  # noqa: E402
@@ -66,17 +68,7 @@ class Silent:
         return lambda observation: 0
 '''
 
-TINY = """
-[set.arena]
-size = [30.0, 30.0]
-start = [5.0, 5.0]
-target = [25.0, 25.0]
-static_obstacles = 3
-[set.robot]
-drive = "planar"
-[demos]
-episodes = 2
-"""
+TINY = TINY_TABLES
 
 
 @pytest.fixture

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import TINY_CONFIG, TINY_TABLES
 
 from nirl_mj.cli import main
 from nirl_mj.data.outcomes import metrics_of, sct, spl
@@ -23,23 +24,8 @@ from nirl_mj.sim import spec
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# the tiny task of tests/test_experiments.py: a 30 m arena, 3 obstacles, seconds per cell
 TOP = "runs = 2\ntests = 2\n"  # before the head: keys after an [[axis]] table belong to it
-TINY = """
-[set.arena]
-size = [30.0, 30.0]
-start = [5.0, 5.0]
-target = [25.0, 25.0]
-static_obstacles = 3
-[set.robot]
-drive = "planar"
-[demos]
-episodes = 2
-[config]
-episodes = 1
-trajectories_per_episode = 2
-validation_arenas = 2
-"""
+TINY = TINY_TABLES + TINY_CONFIG
 TRAINING = """kind = "suite"
 methods = ["NIRL", "BC", "rule", "expert"]
 [[axis]]
