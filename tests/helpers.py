@@ -1,9 +1,17 @@
 """Shared pieces of the learning tests: the open arena the short runs learn in, and their measure."""
 
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import numpy as np
 
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.sim import spec
+
+ROOT = Path(__file__).resolve().parents[1]
 
 # An open arena (no obstacle inside the walls) the rule expert crosses in ~28 decisions: short runs
 # of every learner reach the target there, and a uniform random policy does not.
@@ -33,6 +41,25 @@ trajectories_per_episode = 2
 validation_arenas = 2
 """
 """NIRL's 1 iteration of 2 rollouts, for the tiny experiments."""
+
+
+def cell_times(out: Path) -> dict[str, int]:
+    """The finished cells of the experiment in ``out``, by file name: their modification times (ns)."""
+    return {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+
+
+def killed_after_cells(argv: list[str], out: Path, cells: int, seconds: float = 180.0) -> dict[str, int]:
+    """Runs ``nirl-mj ARGV`` in a process of its own and kills it (SIGKILL: no clean-up runs) once
+    ``out`` holds ``cells`` finished cells (``seconds`` only bound a test that would hang); returns
+    :func:`cell_times` of what it left."""
+    process = subprocess.Popen([sys.executable, "-m", "nirl_mj.cli", *argv], cwd=ROOT,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    deadline = time.monotonic() + seconds
+    while len(list((out / "cells").glob("*.json"))) < cells and time.monotonic() < deadline:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    return cell_times(out)
 
 
 def progress(trajectories: list[Trajectory]) -> float:

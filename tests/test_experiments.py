@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import TINY_CONFIG, TINY_TABLES
+from helpers import TINY_CONFIG, TINY_TABLES, cell_times, killed_after_cells
 
 from nirl_mj.cli import main
 from nirl_mj.experiments import kinds, protocol
@@ -409,17 +409,10 @@ def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, ex
 def test_killed_sweep_resumes_without_recomputing_finished_cells(serial_sweep, tmp_path):
     spec, _, reference = serial_sweep
     out = tmp_path / "killed"
-    command = [sys.executable, "-m", "nirl_mj.cli", *sweep_args(spec, out, "serial")]
-    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 120
-    while len(list((out / "cells").glob("*.json"))) < 4 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    before = killed_after_cells(sweep_args(spec, out, "serial"), out, 4, seconds=120)
     assert 4 <= len(before) < len(reference), "the sweep was not killed part-way"
     assert main(sweep_args(spec, out, "serial")) == 0
-    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    after = cell_times(out)
     assert {name: after[name] for name in before} == before  # finished cells were not recomputed
     assert cell_results(out) == reference
 

@@ -5,18 +5,15 @@ import csv
 import inspect
 import json
 import os
-import signal
-import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("gymnasium", reason="the plugin adapter's environments need nirl-mj[gym]")
 
-from helpers import TINY_TABLES  # noqa: E402
+from helpers import TINY_TABLES, cell_times, killed_after_cells  # noqa: E402
 
 from nirl_mj.cli import main  # noqa: E402
 from nirl_mj.experiments import protocol  # noqa: E402
@@ -167,17 +164,10 @@ def test_an_installed_method_resumes_after_a_kill(installed, tmp_path):
     reference = tmp_path / "reference"
     assert main(compare(path, reference)) == 0
     out = tmp_path / "killed"
-    command = [sys.executable, "-m", "nirl_mj.cli", *compare(path, out)]
-    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 180
-    while len(list((out / "cells").glob("*.json"))) < 1 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    before = killed_after_cells(compare(path, out), out, 1)
     assert 1 <= len(before) < 4, "the comparison was not killed part-way"
     assert main(compare(path, out)) == 0
-    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    after = cell_times(out)
     assert {name: after[name] for name in before} == before
 
     def results(d: Path) -> dict:

@@ -3,15 +3,11 @@ a killed suite resumed without recomputation, navigation metrics by hand, the na
 
 import csv
 import json
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import TINY_CONFIG, TINY_TABLES
+from helpers import TINY_CONFIG, TINY_TABLES, cell_times, killed_after_cells
 
 from nirl_mj.cli import main
 from nirl_mj.data.outcomes import metrics_of, sct, spl
@@ -165,17 +161,10 @@ def test_the_expert_row_is_the_demonstrator_of_each_value(training_suite):
 def test_a_killed_suite_resumes_without_recomputing_finished_cells(training_suite, tmp_path):
     path, _, reference = training_suite
     out = tmp_path / "killed"
-    command = [sys.executable, "-m", "nirl_mj.cli", *args(path, out)]
-    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 180
-    while len(list((out / "cells").glob("*.json"))) < 4 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    before = killed_after_cells(args(path, out), out, 4)
     assert 4 <= len(before) < len(reference), "the suite was not killed part-way"
     assert main(args(path, out)) == 0
-    after = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    after = cell_times(out)
     assert {name: after[name] for name in before} == before  # finished cells were not recomputed
     assert cells(out) == reference
 
