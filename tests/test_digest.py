@@ -16,7 +16,7 @@ ee3e5c9...), and was re-pinned on 2026-11-24 after checking that 44e7b06 and the
 new code give the same digest there. If this test fails, first run it at the last
 commit it passed at: if that fails too, the platform changed, not the results.
 Re-pinned the same day when the default variant took bearing reward features and
-network inputs (docs/ALGORITHM.md, "Bearing features"): meant to change results; the paper
+network inputs (docs/notebook/algorithm.md, "Bearing features"): meant to change results; the paper
 variant's checkpoint, policy, metrics, reward and evaluation stayed bit-identical.
 Re-pinned on 2026-11-25 when AL and RE took the per-state reading by default (issue 16): meant
 to change results; with ``al_expectations`` and ``re_expectations`` set to "trajectory" the new

@@ -775,24 +775,3 @@ def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_
     assert main([*run, "--task", str(new_spec), "--out", str(tmp_path / "third"), "--reuse", str(new)]) == 0
     again = json.loads((tmp_path / "third" / "cells" / "NIRL-run000.json").read_text())
     assert again["reused_from"] == str(new.resolve()) and "reused_as" not in again
-
-
-def test_the_index_of_experiment_files_is_what_the_files_say():
-    """docs/EXPERIMENTS.md's index is rendered from tasks/ (docs/scripts/experiment_index.py --write)."""
-    import runpy
-
-    index = runpy.run_path(str(ROOT / "docs" / "scripts" / "experiment_index.py"))
-    assert index["current"]() == index["render"](), "run: python docs/scripts/experiment_index.py --write"
-
-
-def test_the_readme_and_results_tables_are_rendered_from_the_stored_results():
-    """README.md's and RESULTS.md's short Table I is docs/scripts/summary_table.py's output on the stored
-    docs/results/table1_fair/results.json, character for character (a figure is never typed)."""
-    script = ROOT / "docs" / "scripts" / "summary_table.py"
-    stored = ROOT / "docs" / "results" / "table1_fair" / "results.json"
-    table = subprocess.run([sys.executable, str(script), str(stored)], capture_output=True, text=True,
-                           check=True).stdout.strip()  # fmt: skip
-    for page in ("README.md", "docs/RESULTS.md"):
-        assert table in (ROOT / page).read_text(encoding="utf-8"), (
-            f"{page}: rerun {script.name} and paste its table"
-        )

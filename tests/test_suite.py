@@ -304,14 +304,3 @@ def test_points_computes_some_values_now_and_the_others_later(training_suite, tm
     assert cells(out) == reference
     assert main(args(path, out, "--points", "sensor-random99")) == 2
     assert "--points sensor-random99: not a value of demonstrator" in capsys.readouterr().err
-
-
-def test_the_reading_in_results_md_is_what_the_stored_suites_say():
-    """docs/RESULTS.md's suite reading is rendered from docs/results/suites/*.csv
-    (python docs/scripts/suite_reading.py --write)."""
-    import runpy
-
-    reading = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))
-    folder = ROOT / "docs" / "results" / "suites"
-    rerun = "run: python docs/scripts/suite_reading.py --write"
-    assert reading["current"]() == reading["render"](folder), rerun

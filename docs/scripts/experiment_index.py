@@ -4,27 +4,29 @@ command, with its results where.
 Rendered from the files themselves: every TOML under tasks/ with a top-level ``kind`` (an experiment
 file), its ``description``, the command that runs it, its stored results (docs/results/NAME/, or
 docs/results/suites/NAME.* for a suite, or the folder the tests' RECORDED table names) and the docs
-that cite it. ``--write`` replaces the index between its markers in docs/EXPERIMENTS.md;
-tests/test_experiments.py checks that the page holds what this renders.
+that cite it. docs/EXPERIMENTS.md holds it in a generated block (``experiment-index``), rewritten
+by ``python docs/scripts/render_docs.py`` and checked by tests/test_docs.py.
 
-    python docs/scripts/experiment_index.py [--write]
+    python docs/scripts/experiment_index.py      # print it
 """
 
 from __future__ import annotations
 
-import sys
 import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-PAGE = ROOT / "docs" / "EXPERIMENTS.md"
-START, END = (
-    "<!-- experiment index: start (docs/scripts/experiment_index.py) -->",
-    "<!-- experiment index: end -->",
-)
 RECORDED = {"table1_v2": "table1_extended", "table1": "table1_fair", "table1_nirl": "table1_fair"}
 """A file whose results folder has another name (as tests/test_experiments.py's RECORDED)."""
-DOCS = ("README.md", "docs/RESULTS.md", "docs/ALGORITHM.md", "docs/PERFORMANCE.md", "docs/EXTENDING.md")
+DOCS = (
+    "README.md",
+    "docs/RESULTS.md",
+    "docs/ALGORITHM.md",
+    "docs/PERFORMANCE.md",
+    "docs/EXTENDING.md",
+    "docs/notebook/results.md",
+    "docs/notebook/algorithm.md",
+)
 
 
 def results_of(path: Path, kind: str) -> str:
@@ -38,7 +40,8 @@ def results_of(path: Path, kind: str) -> str:
 
 def cited_in(path: Path) -> str:
     rel = str(path.relative_to(ROOT))
-    return ", ".join(d for d in DOCS if rel in (ROOT / d).read_text(encoding="utf-8")) or "-"
+    cited = [d for d in DOCS if (ROOT / d).is_file() and rel in (ROOT / d).read_text(encoding="utf-8")]
+    return ", ".join(cited) or "-"
 
 
 def render() -> str:
@@ -52,22 +55,11 @@ def render() -> str:
         what = str(data.get("description", "")).replace("|", "/")
         run = f"`nirl-mj {kind} --task {rel}`"
         rows.append(f"| `{rel}` | {kind} | {what} | {run} | {results_of(path, kind)} | {cited_in(path)} |")
-    return "\n".join([START, *rows, END])
-
-
-def current() -> str:
-    text = PAGE.read_text(encoding="utf-8")
-    if START not in text or END not in text:
-        return ""
-    return text[text.index(START) : text.index(END) + len(END)]
+    return "\n".join(rows)
 
 
 def main() -> None:
-    index = render()
-    if "--write" in sys.argv:
-        text = PAGE.read_text(encoding="utf-8")
-        PAGE.write_text(text.replace(current(), index) if current() else text + "\n" + index + "\n")
-    print(index)
+    print(render())
 
 
 if __name__ == "__main__":

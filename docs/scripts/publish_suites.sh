@@ -2,7 +2,7 @@
 # Writes each suite's tables from the cells finished so far (nirl-mj suite --report) and keeps them in
 # docs/results/suites/: NAME.csv (the tidy rows), NAME.md (the tables), NAME-AXIS.png (the curves),
 # NAME.experiment.json (the identity). Then the reading of docs/RESULTS.md, "Suites":
-# python docs/scripts/suite_reading.py. Usage: bash docs/scripts/publish_suites.sh [NAME...]
+# python docs/scripts/render_docs.py. Usage: bash docs/scripts/publish_suites.sh [NAME...]
 # (default: demos quality transfer; each from runs/NAME, the suite's default output).
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -9,9 +9,9 @@ method):
 - how much of the sensor expert's success each keeps where it was never trained;
 - where the first learner (NIRL) and behaviour cloning differ, paired.
 
-    python docs/scripts/suite_reading.py [DIR] [--write]
-        DIR: where the CSVs are (default docs/results/suites); --write: replace the reading between its
-        markers in docs/RESULTS.md (tests/test_suite.py checks that the page holds what this renders)
+    python docs/scripts/suite_reading.py [DIR]
+        DIR: where the CSVs are (default docs/results/suites). docs/RESULTS.md holds the reading in a
+        generated block (``suite-reading``), rewritten by ``python docs/scripts/render_docs.py``
 """
 
 from __future__ import annotations
@@ -117,10 +117,6 @@ def versus_clone(name: str, rows: list[dict]) -> list[str]:
     return [*out, ""]
 
 
-PAGE = Path(__file__).parents[1] / "RESULTS.md"
-START, END = "<!-- suite reading: start (docs/scripts/suite_reading.py) -->", "<!-- suite reading: end -->"
-
-
 def render(folder: Path) -> str:
     parts = []
     readers = {"demos": demos_reading, "quality": quality_reading, "transfer": transfer_reading}
@@ -131,23 +127,12 @@ def render(folder: Path) -> str:
             continue
         rows = read(path)
         parts.append("\n".join([*reading(rows), "", *versus_clone(name, rows)]))
-    return "\n".join([START, *parts, END])
-
-
-def current() -> str:
-    text = PAGE.read_text(encoding="utf-8")
-    return text[text.index(START) : text.index(END) + len(END)] if START in text and END in text else ""
+    return "\n".join(parts)
 
 
 def main() -> None:
-    args = [a for a in sys.argv[1:] if a != "--write"]
-    folder = Path(args[0]) if args else Path(__file__).parents[1] / "results" / "suites"
-    reading = render(folder)
-    if "--write" in sys.argv:
-        if not current():
-            raise SystemExit(f"{PAGE}: no markers {START} ... {END}")
-        PAGE.write_text(PAGE.read_text(encoding="utf-8").replace(current(), reading))
-    print(reading)
+    folder = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parents[1] / "results" / "suites"
+    print(render(folder))
 
 
 if __name__ == "__main__":

@@ -19,16 +19,18 @@ steps 2-3. Step 4 is the loop's ONE iteration of SARSA targets and backpropagati
 on r = theta^T f with the network warm-started, not an RL solve to optimality: the policy whose
 mu is measured next has only partly adapted to w^(i). The loop's stopping rule (step 3) is
 ``LearnerConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
-on validation arenas, as for every method, not the paper's "best t or a mixture".
+by the loop's ``LearnerConfig.selection`` (by default balanced accuracy on the demonstrations), as
+for every method, not the paper's "best t or a mixture".
 
 Feature expectations (``LearnerConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
 each trajectory's discounted feature sum from its first pair, averaged over trajectories. With
-gamma = 0.65 that weighs about the first three decisions of each trajectory, in open space near
-the start (docs/ALGORITHM.md, "Baselines"). ``"suffix"`` averages the discounted suffix sum of every
-visited pair instead, so every state counts, but it matches state-action frequencies: measured to
+the paper's gamma = 0.65 that weighs about the first three decisions of each trajectory, in open
+space near the start (about ten at the default's 0.9; docs/ALGORITHM.md, "The baselines").
+``"suffix"`` averages the discounted suffix sum of every visited pair instead, so every state
+counts, but it matches state-action frequencies: measured to
 collapse to "prefer forward", the action the expert takes ~91 % of the time.
 
-``"state"`` (the default since 2026-11-25) is the per-state reading that NIRL's default margin uses
+``"state"`` (the default) is the per-state reading of NIRL's classifier margin
 (``learn/mmp.py``, ``matching = "occupancy"``, ``future_mix = 0``): in every demonstrated state s_n
 the expert's discounted suffix mu_E(s_n, a_n) = f(s_n, a_n) + gamma mu_E(next_n) is compared with
 what the learner's policy pi^(i) does in the same state, sum_a pi^(i)(a | s_n) f(s_n, a) followed by

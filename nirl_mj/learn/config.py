@@ -85,9 +85,9 @@ class LoopConfig:
     # new validation arenas, and the best over both sets is chosen (1: no second round)
     final_candidates: int = 3
     reward_source: str = "learned"  # "progress" / "constant": the controls (a known reward, no step)
-    # the inner learner (docs/ALGORITHM.md, "Inner learner"): what a target bootstraps from, Q(s', a')
-    # of the next pair taken ("sarsa", eq. 14) or max_a' Q(s', a') ("q": Q-learning, the greedy
-    # policy's values); the hidden units of the network (paper: 10); n-step targets, the next n
+    # the inner learner (docs/notebook/algorithm.md, "Inner learner"): what a target bootstraps
+    # from, Q(s', a') of the next pair taken ("sarsa", eq. 14) or max_a' Q(s', a') ("q": Q-learning,
+    # the greedy policy's values); the hidden units of the network (paper: 10); n-step targets, the next n
     # rewards before the bootstrap (paper: 1, eq. 14)
     bootstrap: str = "q"
     hidden_units: int = 32
@@ -172,7 +172,8 @@ class RelativeEntropyConfig:
     """RE-IRL's reward step (``learn/reirl.py``)."""
 
     re_expectations: str = "state"  # as ApprenticeshipConfig.al_expectations (learn/reirl.py)
-    re_horizon: int = 16  # pairs per RE sample (and its importance ratio); gamma^16 ~ 1e-3
+    # pairs per RE sample (and its importance ratio); gamma^16: 1e-3 at 0.65, 0.19 at 0.9
+    re_horizon: int = 16
     re_step: float = 0.5  # gradient-ascent step on the dual g(theta)
     re_steps: int = 30  # ascent steps per iteration, warm-started from the last theta
     re_pool: int = 10  # iterations whose rollouts are pooled as importance samples

@@ -7,7 +7,7 @@ sectors 1 and 9 are neighbours (0 and -40 degrees) at opposite ends of the
 scale, and "the target is behind" (V = 4..7) is a band in the middle. With
 ``bearing`` the network sees the sector's centre as (cos, sin) in V's place,
 17 inputs, where "behind" is cos < 0 and "to the left" is sin > 0
-(docs/ALGORITHM.md, "Bearing features").
+(docs/notebook/algorithm.md, "Bearing features").
 """
 
 from __future__ import annotations

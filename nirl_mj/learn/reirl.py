@@ -31,9 +31,10 @@ Readings in the shared loop (:class:`nirl_mj.learn.loop.IrlLoop`), each with its
 - Samples of the last ``re_pool`` iterations are pooled, each with its own behaviour policy's
   ratio U / pi (each batch is an unbiased importance-sampling estimate of Z; their sum too).
 - Each sample is the first H = ``re_horizon`` pairs of a trajectory, for f^tau and for U / pi alike,
-  on the expert's side too (step 1, normalised the same way). gamma^H ~ 1e-3 (H = 16, gamma = 0.65)
-  so f^tau loses almost nothing, and the importance ratio of pairs that do not change f^tau is
-  left out: over a whole trajectory (~100-300 decisions) it would put all weight on one sample.
+  on the expert's side too (step 1, normalised the same way). gamma^H is 1e-3 at H = 16 and the
+  paper's gamma = 0.65, so f^tau loses almost nothing there (0.19 at the default's 0.9), and the
+  importance ratio of pairs that do not change f^tau is left out: over a whole trajectory
+  (~100-300 decisions) it would put all weight on one sample.
 - theta is warm-started from the previous iteration; ``re_steps`` ascent steps per iteration
   (the paper iterates to convergence on a fixed sample set; here the samples move with the
   learner, as its rollouts change).

@@ -12,7 +12,7 @@ Three feature maps for the reward (the policy network always sees phi(s)):
   centre after one-hot V, 27 values, 162 in all. One-hot V leaves a sector the expert never
   had behind it (V = 4..7: 10 of 3583 demonstrated pairs) without a learned reward; (cos, sin)
   carry "turn towards the target" learned in the sectors the expert did see over to them
-  (docs/ALGORITHM.md, "Bearing features").
+  (docs/notebook/algorithm.md, "Bearing features").
 """
 
 from __future__ import annotations

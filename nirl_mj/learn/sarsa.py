@@ -1,5 +1,5 @@
 """Value targets for the neural policy iteration: on-policy SARSA (paper section IV-C, eq. 14),
-and the n-step returns of the default variant (docs/ALGORITHM.md, "The default's inner learner").
+and the n-step returns of the default variant (docs/notebook/algorithm.md, "The default's inner learner").
 
 Q-values are the network's outputs in (0, 1) (eq. 7), so the targets are
 clipped to [0, 1]; the share that needed clipping is returned so callers can

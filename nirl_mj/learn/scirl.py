@@ -18,7 +18,7 @@ classifier, and trains it to predict the expert's actions. The algorithm, in the
    As the authors' code: theta_0 = 0, the subgradient normalised, step c / (k + 1) (c = 3), 40 steps.
 4. r_theta = theta^T f; then any RL algorithm (here the shared loop's neural SARSA).
 
-Readings, each with its reason (docs/ALGORITHM.md, "Baselines"):
+Readings, each with its reason (docs/ALGORITHM.md, "The baselines"):
 
 - l = ``LearnerConfig.margin_loss`` (0.1, not the paper's 1) and theta kept in the ball ||theta|| <= 1
   (projection after each step) instead of the paper's lambda/2 ||theta||^2 term, its constrained

@@ -1,0 +1,118 @@
+"""The docs a newcomer reads: tables rendered from stored results, links that lead somewhere, a
+README that fits a screenful of sections (issue 35)."""
+
+from __future__ import annotations
+
+import re
+import runpy
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+RENDER = runpy.run_path(str(ROOT / "docs" / "scripts" / "render_docs.py"))
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+PAGES = [p for p in PAGES if "results" not in p.relative_to(ROOT).parts[:2]]
+"""The written pages (the stored reports under docs/results/ are outputs, not pages)."""
+
+
+def test_every_generated_block_is_what_its_stored_file_renders():
+    assert RENDER["stale"]() == [], "run: python docs/scripts/render_docs.py"
+
+
+@pytest.mark.parametrize("page", RENDER["CHECKED"])
+def test_every_results_table_is_generated(page):
+    assert RENDER["ungenerated_tables"](ROOT / page) == [], (
+        f"{page}: a table of figures outside a generated block (lines above); render it from a stored file"
+    )
+
+
+def test_the_checks_catch_a_typed_table_and_a_stale_block(tmp_path):
+    """Both checks can fail: a table of figures typed by hand, and a generated block edited by hand."""
+    typed = tmp_path / "typed.md"
+    typed.write_text("Text.\n\n| method | success |\n|---|---|\n| NIRL | 97.4 % |\n| BC | 96 |\n\nMore.\n")
+    assert RENDER["ungenerated_tables"](typed) == [3]
+    words = tmp_path / "words.md"
+    words.write_text("| key | meaning |\n|---|---|\n| `name` | informational |\n")
+    assert RENDER["ungenerated_tables"](words) == []
+    block = "<!-- generated: summary docs/results/table1_fair/results.json -->\n"
+    good = f"{block}\n{RENDER['render_block']('summary docs/results/table1_fair/results.json')}\n\n"
+    good += "<!-- end generated -->"
+    assert RENDER["rendered"](good) == good
+    edited = good.replace("| NIRL |", "| NIRL (edited) |", 1)
+    assert edited != good and RENDER["rendered"](edited) == good
+    assert RENDER["ungenerated_tables"](_write(tmp_path / "block.md", good)) == []
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def paragraphs(text: str) -> list[list[str]]:
+    """The prose paragraphs of a Markdown page: runs of non-blank lines outside code fences, tables
+    and HTML comments; each list item is a paragraph of its own."""
+    found: list[list[str]] = []
+    current: list[str] = []
+    fenced = False
+    for line in [*text.splitlines(), ""]:
+        if line.startswith("```"):
+            fenced = not fenced
+        starts_item = re.match(r"\s*([-*]|\d+\.) ", line) is not None
+        prose = not fenced and line.strip() and not line.startswith(("|", "<!--", "```", "#", "!["))
+        if not prose or starts_item:
+            if current:
+                found.append(current)
+            current = [line] if prose else []
+            continue
+        current.append(line)
+    return found
+
+
+def test_the_readme_is_a_front_door():
+    """At most 200 lines, no paragraph over 6 lines, the two commands first, no dated history."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 200
+    longest = max(paragraphs(text), key=len)
+    assert len(longest) <= 6, "a README paragraph over 6 lines:\n" + "\n".join(longest)
+    first = text.split("```bash\n", 1)[1].split("```", 1)[0].splitlines()
+    assert first[0].startswith("bash .ci/setup && .venv/bin/nirl-mj run")
+    assert first[1].startswith(".venv/bin/python -m pytest -q")
+    assert not re.search(r"\b(since|before|until) 20\d\d-\d\d-\d\d", text), "a dated history in the README"
+
+
+def test_the_paragraph_counter_counts():
+    text = "one\ntwo\nthree\n\n- item\n  more\n- next\n\n```\nx\ny\n```\n| a |\n"
+    assert [len(p) for p in paragraphs(text)] == [3, 2, 1]
+
+
+def test_algorithm_md_describes_the_default_in_at_most_400_lines():
+    assert len((ROOT / "docs" / "ALGORITHM.md").read_text(encoding="utf-8").splitlines()) <= 400
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor of a heading."""
+    text = re.sub(r"[^\w\- ]", "", heading.strip().lower())
+    return text.replace(" ", "-")
+
+
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_leads_to_a_file_and_its_heading(page):
+    """A newcomer clicking through README and docs/ never lands on a missing file or anchor."""
+    text = re.sub(r"```.*?```", "", page.read_text(encoding="utf-8"), flags=re.S)
+    broken = []
+    for target in LINK.findall(text):
+        if re.match(r"[a-z]+:", target):
+            continue  # a web address
+        path, _, anchor = target.partition("#")
+        where = (page.parent / path).resolve() if path else page
+        if not where.exists():
+            broken.append(target)
+        elif anchor and where.suffix == ".md":
+            headings = re.findall(r"^#+ (.+)$", where.read_text(encoding="utf-8"), flags=re.M)
+            if anchor not in {slug(h) for h in headings}:
+                broken.append(target)
+    assert broken == []
