@@ -1,6 +1,7 @@
 """The main job end to end on a tiny configuration: every artifact, and resume."""
 
 import json
+import re
 
 import rerun.chunk
 
@@ -29,6 +30,11 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
         assert (out / name).stat().st_size > 0, name
     report = (out / "report.md").read_text()
     assert "| NIRL |" in report and "| always forward |" in report
+    images = re.findall(
+        r"^!\[[^\]]*\]\(([^)]+)\)\n\n\*Figure \d", report, flags=re.MULTILINE
+    )  # each captioned
+    assert len(images) == report.count("![") == 5 and all((out / image).is_file() for image in images)
+    assert "| path of successful tests (m) |" in report and "selected policy (iteration " in report
     entities = {chunk.entity_path for chunk in rerun.chunk.RrdReader(out / "run.rrd").store().stream()}
     assert (
         "/training/margin" in entities and "/eval/nirl/000/path" in entities and "/demos/000/path" in entities

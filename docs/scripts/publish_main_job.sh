@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Keeps a finished main job's results in docs/results/main_job/: results.json, report.md and its
-# figures, experiment.json. Then the docs' tables: python docs/scripts/render_docs.py.
+# figures, experiment.json, and the test episodes (tests/METHOD.npz, the dataset format) that the
+# report's path and SCT columns are computed from. Then the docs' tables: python docs/scripts/render_docs.py.
 # Usage: bash docs/scripts/publish_main_job.sh [RUN]   (default runs/main, what `nirl-mj run` writes)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -10,4 +11,6 @@ out=docs/results/main_job
 mkdir -p "$out"
 cp "$run/results.json" "$run/report.md" "$run/experiment.json" "$out/"
 cp "$run"/*.png "$out/"
+mkdir -p "$out/tests"
+cp "$run"/tests/*.npz "$out/tests/"
 echo "$out: results.json, report.md, experiment.json and the report's figures"

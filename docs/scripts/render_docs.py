@@ -19,7 +19,8 @@ Renderers (``RENDERERS``):
 - ``experiment-index``: the claim/experiment/results index (``experiment_index.py``);
 - ``include PATH [code]``: a stored output file verbatim (a suite's ``suite.md``, a script's
   output), in a code block with ``code``;
-- ``main-job RESULTS_JSON``: the main job's table (``nirl_mj.inspect.figures.results_table``);
+- ``main-job FOLDER``: the main job's table as its report gives it, from a folder that
+  ``publish_main_job.sh`` filled;
 - those of ``algorithm_tables.py``, docs/ALGORITHM.md's own.
 
 ``tests/test_docs.py`` runs ``--check`` and also fails when a results table in README.md,
@@ -45,8 +46,7 @@ import suite_reading  # noqa: E402
 import summary_table  # noqa: E402
 
 from nirl_mj.data.atomic import write_text  # noqa: E402
-from nirl_mj.experiments import compare  # noqa: E402
-from nirl_mj.inspect import figures  # noqa: E402
+from nirl_mj.experiments import compare, main_job  # noqa: E402
 
 BLOCK = re.compile(r"(<!-- generated: (?P<command>[^>]*?) -->\n)(?P<body>.*?)(<!-- end generated -->)", re.S)
 PAGES = ("README.md", "docs/*.md")
@@ -98,9 +98,8 @@ def render_include(path: str, form: str = "text") -> str:
     return f"```\n{text}\n```" if form == "code" else text
 
 
-def render_main_job(path: str) -> str:
-    stored = json.loads((ROOT / path).read_text(encoding="utf-8"))
-    return figures.results_table(stored["results"])
+def render_main_job(folder: str) -> str:
+    return main_job.report_table(ROOT / folder)
 
 
 RENDERERS: dict[str, Callable[..., str]] = {

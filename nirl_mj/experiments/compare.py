@@ -24,6 +24,7 @@ import csv
 import io
 import json
 import math
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 
@@ -167,6 +168,23 @@ def markdown_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def terms_section() -> str:
+    """What the columns of :func:`markdown_table` mean, for a reader without the code."""
+    from nirl_mj.inspect.figures import NIRL_PAPER, SPL_TEXT  # matplotlib: only where reports are written
+
+    text = (
+        "**Terms.** *success avg*: the mean over the runs of a run's success rate, the percentage of its "
+        "tests (one per held-out arena) that reached the target; *best*, *worst*: the best and the worst "
+        "run; *collision*, *timeout*: the mean percentage of tests that hit an obstacle or a wall, or used "
+        f"up the step budget first; {SPL_TEXT} (here the mean over the runs); *paper avg / best / worst*: "
+        f'the success the NIRL paper ({NIRL_PAPER}) reports in its Table I ("-": a method it does not '
+        "report); *reads*: what a method reads in training or in choosing its policy "
+        "(`nirl_mj/experiments/reads.py`), a **reference** reading a task signal that a learner from "
+        "demonstrations does not."
+    )
+    return textwrap.fill(text, 100, break_long_words=False, break_on_hyphens=False)
+
+
 def reads_text(reads: list[str] | None) -> str:
     """A method's ``reads`` for a table cell; a reference's (it reads a task signal) in bold."""
     if reads is None:  # a summary written before reads were recorded
@@ -308,7 +326,13 @@ def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dic
 
 {markdown_table(summary)}
 
+{terms_section()}
+
 ![success per method](table.png)
+
+*Figure. Success (y, percent of a run's {experiment.tests} tests that reached the target) per method (x):
+the bar is the mean over the runs with its 95 % CI, the red diamonds the best and the worst run; the
+hatched bar beside it, where there is one, is the success the NIRL paper reports in its Table I.*
 {runs_section(summary)}{paired_section(summary)}{failed_section(summary)}"""
     write_text(out / "table.md", text)
     write_text(out / "table.csv", csv_table(summary))
