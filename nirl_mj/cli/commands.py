@@ -23,14 +23,13 @@ from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import default_workers
-from nirl_mj.experiments.main_job import main_experiment, main_job
+from nirl_mj.experiments.main_job import main_experiment, main_job, report_table
 from nirl_mj.experiments.protocol import Execution
 from nirl_mj.experiments.seeds import episode_seed
 from nirl_mj.experiments.subjects import Subject, reference_subject, run_subject
 from nirl_mj.experiments.training import saved_settings, train
 from nirl_mj.experts import make_expert
 from nirl_mj.inspect import video
-from nirl_mj.inspect.figures import results_table
 from nirl_mj.inspect.recording import Recording, copy_recording, finish_training, record_demonstrations
 from nirl_mj.inspect.text import episode_line, evaluation_line, predictability_line, summary_lines
 from nirl_mj.learn.config import LearnerConfig, checked_changes
@@ -46,10 +45,24 @@ def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> tqdm:
     return tqdm(total=total, unit=unit, file=sys.stderr, disable=getattr(args, "quiet", False), **kw)
 
 
+def _summary_text(summary: dict) -> str:
+    """``summary_lines``, with the mean shares of continuous actions where a histogram would be."""
+    text = summary_lines(summary)
+    if summary.get("action_kind") != "continuous":
+        return text
+    mean = summary["mean_action"]
+    return (
+        text.rsplit("\n", 1)[0] + f"\ncontinuous actions ({summary['pairs']} pairs): mean shares forward "
+        f"{mean['forward']:+.2f}, yaw rate {mean['yaw_rate']:+.2f} (size {mean['abs_yaw_rate']:.2f})"
+    )
+
+
 def _summary(trajectories: list, summary: dict) -> dict | None:
-    """Prints a dataset's summary and, with two or more episodes, its predictability from phi(s)."""
-    print(summary_lines(summary))
-    pred = predictability(trajectories) if len(trajectories) >= 2 else None
+    """Prints a dataset's summary and, with two or more episodes of discrete actions, its
+    predictability from phi(s) (a classifier of the six actions)."""
+    print(_summary_text(summary))
+    discrete = summary.get("action_kind", "discrete") == "discrete"
+    pred = predictability(trajectories) if len(trajectories) >= 2 and discrete else None
     if pred:
         print(predictability_line(pred))
     return pred
@@ -72,6 +85,14 @@ def _check_output(path: str | Path, overwrite: bool) -> Path:
 
 def _task(args: argparse.Namespace):
     return apply_overrides(load_task(args.task or "navigate"), args.set)
+
+
+def _no_rerun_of_continuous(args: argparse.Namespace, spec) -> None:
+    """Refuses ``--rerun`` on a task with continuous actions before any work: the Rerun recording
+    names each decision's action among the six discrete ones."""
+    if getattr(args, "rerun", None) and spec.control.actions == "continuous":
+        raise ValueError(f"--rerun: task {spec.name} has continuous actions, and the Rerun recording shows "
+                         "the six discrete actions only: leave out --rerun")  # fmt: skip
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -100,7 +121,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
     finally:
         bar.close()
-    print(results_table(results))
+    print(report_table(args.out))
     print(f"report: {Path(args.out) / 'report.md'}")
     if args.rerun:
         print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun)}")
@@ -121,7 +142,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             bar.update()
             bar.write(f"episode {i:3d}  {episode_line(trajectories[-1])}", file=sys.stdout)
     summary = summarise(trajectories)
-    print(summary_lines(summary))
+    print(_summary_text(summary))
     if args.json:
         print(json.dumps({**summary, "task": spec.name, "policy": args.policy, "seed": args.seed}))
     return 0
@@ -138,6 +159,7 @@ def _demos(args: argparse.Namespace) -> int:
     if args.rerun:
         _check_output(args.rerun, args.overwrite)
     spec = _task(args)
+    _no_rerun_of_continuous(args, spec)
     expert = ExpertConfig(args.expert, args.base, args.slip, args.random_action, args.seed)
     workers = args.workers or default_workers()
     print(f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, "
@@ -185,13 +207,16 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         print(f"warning: {empty} of {len(trajectories)} trajectories end before their first decision; "
               f"{usable}")  # fmt: skip
     pred = _summary(trajectories, summary)
-    _, report = map_pretreat(trajectories)
-    print(
-        f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
-        f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)"
-    )
+    changed = None
+    if summary.get("action_kind", "discrete") == "discrete":  # MAP relabels among the six actions
+        _, report = map_pretreat(trajectories)
+        changed = report.pairs_changed
+        print(
+            f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
+            f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)"
+        )
     if args.json:
-        print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": report.pairs_changed}))
+        print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": changed}))
     return 0
 
 
@@ -328,6 +353,7 @@ def _subject(args: argparse.Namespace) -> Subject:
 def cmd_eval(args: argparse.Namespace) -> int:
     subject = _subject(args)
     spec = apply_overrides(subject.task, args.set)
+    _no_rerun_of_continuous(args, spec)
     if args.rerun:
         _check_output(args.rerun, args.overwrite)
     if subject.run:
@@ -374,6 +400,10 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise video.RenderError(f"--episode {args.episode}: expected a test arena index >= 0")
     subject = _subject(args)
     spec = apply_overrides(subject.task, args.set)
+    if spec.control.actions == "continuous" and subject.name.startswith("rl-"):
+        raise video.RenderError(f"task {spec.name} has continuous actions: render shows a policy of the "
+                                "six discrete actions (a reference policy, a NIRL run), not a continuous RL "
+                                "run")  # fmt: skip
     seeds = subject.test_seeds(args.seed, args.episode + max(1, args.arenas if args.paths else 1))[
         args.episode :
     ]

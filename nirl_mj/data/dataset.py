@@ -21,13 +21,16 @@ import numpy as np
 
 from nirl_mj.data.atomic import AtomicFile, refuse_existing
 from nirl_mj.data.features import FEATURE_NAMES, N_ACTIONS, N_FEATURES, N_SENSORS
-from nirl_mj.data.trajectory import OUTCOMES, Trajectory, task_json
+from nirl_mj.data.trajectory import ACTION_KINDS, CONTINUOUS_DIM, OUTCOMES, Trajectory, action_kind, task_json
 
 FORMAT = "nirl-mj-demos"
 """Value of the ``format`` entry that marks a file as an nirl-mj demonstration dataset."""
 VERSION = 1
-"""Dataset format version written by :func:`save_dataset`."""
-SUPPORTED_VERSIONS = (1,)
+"""Dataset format version :func:`save_dataset` writes for discrete actions (files as they always were)."""
+CONTINUOUS_VERSION = 2
+"""The version it writes for continuous actions: version 1 plus the ``action_kind`` entry, and
+``actions`` float32 (A, 2) where ``action_kind`` is ``"continuous"`` (docs/DATASET.md)."""
+SUPPORTED_VERSIONS = (1, 2)
 """Dataset format versions :func:`load_dataset` reads."""
 
 # Array keys of a dataset file with their dtypes (see docs/DATASET.md). Strings
@@ -65,6 +68,8 @@ _SCHEMA: dict[str, tuple[str, tuple[str, ...] | None, tuple[int | None, ...]]] =
     "poses": ("f", ("float64",), (None, 3)),
     "times": ("f", ("float64",), (None,)),
 }
+# ``actions`` of a dataset of continuous actions (version 2, ``action_kind`` "continuous").
+_CONTINUOUS_ACTIONS = ("f", ("float32",), (None, CONTINUOUS_DIM))
 _PER_TRAJECTORY = ("arena_seed", "speed", "outcome", "demonstrator", "task_index")
 _PER_STATE = ("features", "ranges", "poses", "times")
 # Column blocks of phi(s) (see nirl_mj.data.features) and their allowed values: D (danger
@@ -98,13 +103,19 @@ def _to_arrays(trajectories: Sequence[Trajectory]) -> dict[str, np.ndarray]:
     seeds = [t.arena_seed for t in trajectories]
     # int64 unless a seed needs the 64th bit.
     seed_dtype = np.int64 if max(seeds) < 2**63 else np.uint64
+    continuous = action_kind(trajectories) == "continuous"
+    # Discrete actions: version 1, the very arrays of files written before continuous actions existed.
+    kind = {"action_kind": np.array("continuous")} if continuous else {}
     return {
         "format": np.array(FORMAT),
-        "version": np.array(VERSION, dtype=np.int64),
+        "version": np.array(CONTINUOUS_VERSION if continuous else VERSION, dtype=np.int64),
+        **kind,
         "feature_names": np.array(FEATURE_NAMES),
         "lengths": np.array([len(t) for t in trajectories], dtype=np.int64),
         "features": np.concatenate([t.features for t in trajectories]).astype(np.float32, copy=False),
-        "actions": np.concatenate([t.actions for t in trajectories]).astype(np.int8, copy=False),
+        "actions": np.concatenate([t.actions for t in trajectories]).astype(
+            np.float32 if continuous else np.int8, copy=False
+        ),
         "ranges": np.concatenate([t.ranges for t in trajectories]).astype(np.float32, copy=False),
         "poses": np.concatenate([t.poses for t in trajectories]).astype(np.float64, copy=False),
         "times": np.concatenate([t.times for t in trajectories]).astype(np.float64, copy=False),
@@ -125,8 +136,9 @@ def save_dataset(
 
     Atomic (:class:`nirl_mj.data.atomic.AtomicFile`): readers see the old file or the
     whole new one, never a partial one. Refuses an existing ``path`` unless
-    ``overwrite``; refuses an empty list and data :func:`load_dataset` would
-    reject (so nothing is written that cannot be read back).
+    ``overwrite``; refuses an empty list, trajectories mixing discrete and continuous
+    actions and data :func:`load_dataset` would reject (so nothing is written that cannot be
+    read back). Discrete actions are written as version 1, continuous ones as version 2.
     """
     path = Path(path)
     trajectories = list(trajectories)
@@ -153,7 +165,10 @@ def load_dataset(path: str | os.PathLike) -> list[Trajectory]:
     Raises :class:`DatasetError` naming the file and the problem: missing file,
     not an NPZ (or truncated), a foreign NPZ, an unsupported version, another
     feature layout, a missing key, a wrong dtype or shape, lengths that do not
-    match the rows, NaN/inf, values out of range, an empty dataset.
+    match the rows, NaN/inf, values out of range, an empty dataset. The trajectories'
+    actions are (T,) int8 or, in a dataset of continuous actions, (T, 2) float32 shares
+    (``Trajectory.action_kind``; learners of discrete actions refuse those:
+    :func:`nirl_mj.data.trajectory.require_discrete`).
     """
     path = Path(path)
     where = str(path)
@@ -331,10 +346,28 @@ def _check_keys(a: Mapping[str, np.ndarray]) -> None:
         )
 
 
+def _kind(a: Mapping[str, np.ndarray]) -> str:
+    """The action kind of checked arrays: version 1 holds discrete actions, version 2 says which."""
+    return str(a["action_kind"]) if int(a["version"]) >= CONTINUOUS_VERSION else "discrete"
+
+
+def _check_action_kind(a: Mapping[str, np.ndarray]) -> None:
+    if int(a["version"]) < CONTINUOUS_VERSION:
+        return
+    if "action_kind" not in a:
+        raise _Invalid(f"missing key 'action_kind' (a version {int(a['version'])} dataset says which actions "
+                       f"it holds: {', '.join(ACTION_KINDS)})")  # fmt: skip
+    kind = _scalar_string(a["action_kind"])
+    if kind not in ACTION_KINDS:
+        shown = kind if kind is not None else a["action_kind"]
+        raise _Invalid(f"unknown action_kind {shown!r}; accepted: {', '.join(ACTION_KINDS)}")
+
+
 def _check_array(a: Mapping[str, np.ndarray], key: str) -> None:
-    """The dtype and shape of ``a[key]`` against :data:`_SCHEMA`."""
+    """The dtype and shape of ``a[key]`` against :data:`_SCHEMA` (``actions`` by the action kind)."""
     arr = a[key]
-    kinds, dtypes, shape = _SCHEMA[key]
+    continuous_actions = key == "actions" and _kind(a) == "continuous"
+    kinds, dtypes, shape = _CONTINUOUS_ACTIONS if continuous_actions else _SCHEMA[key]
     if arr.dtype.kind not in kinds or (dtypes is not None and arr.dtype.name not in dtypes):
         want = " or ".join(dtypes) if dtypes else "unicode string"
         raise _Invalid(f"wrong dtype for {key!r}: {arr.dtype}, expected {want}")
@@ -378,7 +411,7 @@ def _check_counts(a: Mapping[str, np.ndarray]) -> None:
 
 
 def _check_finite(a: Mapping[str, np.ndarray]) -> None:
-    for key in _PER_STATE:
+    for key in (*_PER_STATE, "actions") if _kind(a) == "continuous" else _PER_STATE:
         bad = ~np.isfinite(a[key])
         if bad.any():
             raise _Invalid(f"non-finite value (NaN or inf) in {key!r} at row {int(np.argwhere(bad)[0][0])}")
@@ -413,6 +446,12 @@ def _check_features(a: Mapping[str, np.ndarray]) -> None:
 
 def _check_actions(a: Mapping[str, np.ndarray]) -> None:
     actions = a["actions"]
+    if _kind(a) == "continuous":
+        if actions.shape[0] and np.abs(actions).max() > 1.0:
+            row = int(np.argmax(np.abs(actions).max(axis=1) > 1.0))
+            raise _Invalid(f"continuous action out of range: actions[{row}] = {actions[row].tolist()}, "
+                           "allowed shares (forward speed, yaw rate) in [-1, 1]")  # fmt: skip
+        return
     if actions.shape[0] and (actions.min() < 0 or actions.max() >= N_ACTIONS):
         row = int(np.argmax((actions < 0) | (actions >= N_ACTIONS)))
         raise _Invalid(
@@ -437,6 +476,11 @@ def _check_tasks(a: Mapping[str, np.ndarray]) -> None:
             raise _Invalid(f"tasks[{i}] is not valid JSON: {exc}") from None
         if not isinstance(task, dict):
             raise _Invalid(f"tasks[{i}] is not a JSON object (a TaskSpec.to_dict())")
+        control = task.get("control")
+        declared = control.get("actions", "discrete") if isinstance(control, dict) else "discrete"
+        if declared != _kind(a) and declared in ACTION_KINDS:
+            raise _Invalid(f"tasks[{i}] has {declared} actions ([control] actions) but the dataset holds "
+                           f"{_kind(a)} ones")  # fmt: skip
 
 
 def _check_times(a: Mapping[str, np.ndarray]) -> None:
@@ -453,6 +497,7 @@ _CHECKS: tuple[Callable[[Mapping[str, np.ndarray]], None], ...] = (
     _check_format,
     _check_version,
     _check_keys,
+    _check_action_kind,
     _check_schema,
     _check_counts,
     _check_finite,

@@ -121,13 +121,27 @@ def metrics_of(trajectories: list[Trajectory]) -> dict:
 def summarise(trajectories: Sequence[Trajectory]) -> dict[str, Any]:
     """Summary of a dataset for ``nirl-mj inspect``: outcome rates (fractions), steps per
     episode (decisions), the action histogram, episodes per demonstrator and per
-    speed (m/s), number of distinct tasks."""
+    speed (m/s), number of distinct tasks. Continuous actions have no histogram (its
+    counts are empty): ``action_kind`` ``"continuous"`` and ``mean_action``, the mean
+    shares of the forward speed, of the yaw rate and of its size, say how they drove."""
     n = len(trajectories)
     steps = np.array([len(t) for t in trajectories], dtype=np.int64)
     counts = np.zeros(N_ACTIONS, dtype=np.int64)
-    for t in trajectories:
-        counts += np.bincount(t.actions, minlength=N_ACTIONS)
-    total = int(counts.sum())
+    continuous = {}
+    if any(t.action_kind == "continuous" for t in trajectories):
+        shares = np.concatenate([t.actions for t in trajectories]).astype(np.float64)
+        mean = shares.mean(axis=0) if len(shares) else np.zeros(2)
+        continuous = {"action_kind": "continuous", "mean_action": {
+            "forward": float(mean[0]), "yaw_rate": float(mean[1]),
+            "abs_yaw_rate": float(np.abs(shares[:, 1]).mean()) if len(shares) else 0.0}}  # fmt: skip
+        counts = np.zeros(0, dtype=np.int64)
+        names: Sequence[str] = ()
+        total = len(shares)
+    else:
+        for t in trajectories:
+            counts += np.bincount(t.actions, minlength=N_ACTIONS)
+        names = ACTION_NAMES
+        total = int(counts.sum())
     return {
         "episodes": n,
         **outcome_rates(t.outcome for t in trajectories),
@@ -135,10 +149,11 @@ def summarise(trajectories: Sequence[Trajectory]) -> dict[str, Any]:
         "mean_steps": float(steps.mean()) if n else 0.0,
         "min_steps": int(steps.min()) if n else 0,
         "max_steps": int(steps.max()) if n else 0,
-        "action_counts": {name: int(c) for name, c in zip(ACTION_NAMES, counts, strict=True)},
+        "action_counts": {name: int(c) for name, c in zip(names, counts, strict=True)},
         "action_fractions": {
-            name: (float(c) / total if total else 0.0) for name, c in zip(ACTION_NAMES, counts, strict=True)
+            name: (float(c) / total if total else 0.0) for name, c in zip(names, counts, strict=True)
         },
+        **continuous,
         "demonstrators": dict(sorted(Counter(t.demonstrator for t in trajectories).items())),
         "speeds": dict(sorted(Counter(t.speed for t in trajectories).items())),
         "tasks": len({task_json(t.task) for t in trajectories}),

@@ -24,6 +24,11 @@ OUTCOMES = ("target", "collision", "timeout", "physics_error")
 """How an episode can end (lower-case names of :class:`nirl_mj.sim.task.Outcome`, minus RUNNING)."""
 TERMINAL_OUTCOMES = ("target", "collision", "physics_error")
 """The outcomes that end in a terminal state; a timeout truncates the episode instead."""
+ACTION_KINDS = ("discrete", "continuous")
+"""What a trajectory's actions are (a task's ``[control] actions``): ``"discrete"``, an index 0..5 per
+decision; ``"continuous"``, the shares (forward speed, yaw rate) in [-1, 1] per decision."""
+CONTINUOUS_DIM = 2
+"""A continuous action's length: the shares of the forward speed and of the yaw rate."""
 
 
 def _frozen_array(value: Any, dtype: type, name: str) -> np.ndarray:
@@ -67,7 +72,10 @@ class Trajectory:
     arrays T rows:
 
     - ``features`` (T+1, 16) float32: phi(s_t), layout ``features.FEATURE_NAMES``;
-    - ``actions`` (T,) int8: action index 0..5 taken in state t (``features.ACTION_NAMES``);
+    - ``actions`` (T,) int8: action index 0..5 taken in state t (``features.ACTION_NAMES``); or, on a
+      task with continuous actions, (T, 2) float32: the shares in [-1, 1] of the task's forward speed
+      (``control.speed`` m/s) and of its largest yaw rate (60 degrees per decision, rad/s) held
+      during decision t (``nirl_mj.sim.task.action_scale``);
     - ``ranges`` (T+1, 9) float32: clearance of sensors S1..S9 from the robot's outline, metres;
     - ``poses`` (T+1, 3) float64: x, y (metres), yaw (radians, counter-clockwise);
     - ``times`` (T+1,) float64: seconds since the episode's start.
@@ -97,12 +105,14 @@ class Trajectory:
             object.__setattr__(self, name, value)
 
         put("features", _frozen_array(self.features, np.float32, "features"))
-        put("actions", _frozen_array(self.actions, np.int8, "actions"))
+        continuous = np.ndim(self.actions) == 2  # (T, 2) shares; (T,) indices
+        put("actions", _frozen_array(self.actions, np.float32 if continuous else np.int8, "actions"))
         put("ranges", _frozen_array(self.ranges, np.float32, "ranges"))
         put("poses", _frozen_array(self.poses, np.float64, "poses"))
         put("times", _frozen_array(self.times, np.float64, "times"))
-        if self.actions.ndim != 1:
-            raise ValueError(f"Trajectory.actions: expected shape (T,), got {self.actions.shape}")
+        if self.actions.ndim != 1 and self.actions.shape[1:] != (CONTINUOUS_DIM,):
+            raise ValueError(f"Trajectory.actions: expected shape (T,) (discrete actions) or (T, 2) "
+                             f"(continuous ones), got {self.actions.shape}")  # fmt: skip
         t = self.actions.shape[0]
         expected = {
             "features": (t + 1, N_FEATURES),
@@ -116,7 +126,12 @@ class Trajectory:
                 raise ValueError(
                     f"Trajectory.{name}: expected shape {shape} for T = {t} actions (T + 1 states), got {got}"
                 )
-        if t and (self.actions.min() < 0 or self.actions.max() >= N_ACTIONS):
+        if continuous:
+            if not np.all(np.isfinite(self.actions)):
+                raise ValueError("Trajectory.actions: continuous actions must be finite (no NaN or inf)")
+            if t and np.abs(self.actions).max() > 1.0:
+                raise ValueError("Trajectory.actions: continuous actions are shares in [-1, 1]")
+        elif t and (self.actions.min() < 0 or self.actions.max() >= N_ACTIONS):
             raise ValueError(f"Trajectory.actions: values must be in 0..{N_ACTIONS - 1}")
         seed = self.arena_seed
         if isinstance(seed, np.integer):
@@ -148,8 +163,14 @@ class Trajectory:
         """T, the number of decisions."""
         return int(self.actions.shape[0])
 
+    @property
+    def action_kind(self) -> str:
+        """``"continuous"`` for (T, 2) shares, ``"discrete"`` for (T,) indices (:data:`ACTION_KINDS`)."""
+        return ACTION_KINDS[self.actions.ndim - 1]
+
     def pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """The demonstration's state-action pairs: (phi(s_t) (T, 16) float32, a_t (T,) int8)."""
+        """The demonstration's state-action pairs: (phi(s_t) (T, 16) float32, a_t (T,) int8, or (T, 2)
+        float32 for continuous actions)."""
         return self.features[:-1], self.actions
 
     @property
@@ -167,8 +188,31 @@ def path_length(trajectory: Trajectory) -> float:
     return float(np.sum(np.hypot(*np.diff(trajectory.poses[:, :2], axis=0).T)))
 
 
+def action_kind(trajectories: Sequence[Trajectory]) -> str:
+    """The one action kind of ``trajectories`` (:data:`ACTION_KINDS`; ``"discrete"`` for none); a clear
+    error if they mix both."""
+    kinds = {t.action_kind for t in trajectories}
+    if len(kinds) > 1:
+        raise ValueError("the trajectories mix discrete and continuous actions; a dataset holds one kind")
+    return kinds.pop() if kinds else "discrete"
+
+
+def require_discrete(trajectories: Sequence[Trajectory], where: str = "the demonstrations") -> None:
+    """A clear one-line error if ``trajectories`` (``where``: e.g. the dataset's path) hold continuous
+    actions: the learners here (NIRL, BC, DAgger, the IRL baselines, GAIL/AIRL, plugins) choose among
+    the six discrete actions."""
+    if any(t.action_kind == "continuous" for t in trajectories):
+        raise ValueError(
+            f"{where}: holds continuous actions (forward and yaw-rate shares), but NIRL, BC, DAgger and "
+            f"the IRL and adversarial baselines choose among the {N_ACTIONS} discrete actions: accepted: "
+            'demonstrations of discrete actions 0..5 (recorded on a task with [control] actions = "discrete")'
+        )
+
+
 def stack_pairs(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
-    """All state-action pairs of ``trajectories`` concatenated: ((M, 16) float32, (M,) int8)."""
+    """All state-action pairs of ``trajectories`` concatenated: ((M, 16) float32, (M,) int8); discrete
+    actions only (:func:`require_discrete`)."""
+    require_discrete(trajectories)
     if not trajectories:
         return np.zeros((0, N_FEATURES), np.float32), np.zeros(0, np.int8)
     return (
@@ -192,17 +236,20 @@ class TrajectoryRecorder:
         traj = rec.finish("target", seed, spec, spec.control.speed, "planner")
     """
 
-    def __init__(self, decision_period: float) -> None:
+    def __init__(self, decision_period: float, actions: str = "discrete") -> None:
         if not decision_period > 0:
             raise ValueError(f"decision_period must be > 0 seconds, got {decision_period}")
+        if actions not in ACTION_KINDS:
+            raise ValueError(f"actions = {actions!r}: accepted: {', '.join(ACTION_KINDS)}")
         self._period = float(decision_period)
+        self._continuous = actions == "continuous"
         self._reset()
 
     def _reset(self) -> None:
         self._features: list[np.ndarray] = []
         self._ranges: list[np.ndarray] = []
         self._poses: list[np.ndarray] = []
-        self._actions: list[int] = []
+        self._actions: list = []
 
     def __len__(self) -> int:
         """Decisions recorded so far."""
@@ -224,13 +271,19 @@ class TrajectoryRecorder:
         self._reset()
         self._append(observation)
 
-    def step(self, action: int, observation: Mapping[str, np.ndarray]) -> None:
-        """Records ``action`` taken in the previous state and the ``observation`` it led to."""
+    def step(self, action: int | np.ndarray, observation: Mapping[str, np.ndarray]) -> None:
+        """Records ``action`` taken in the previous state (an index 0..5, or for continuous actions the
+        two shares in [-1, 1], kept as float32) and the ``observation`` it led to."""
         if not self._features:
             raise RuntimeError("TrajectoryRecorder.step before start: call start(reset observation) first")
-        a = int(action)
-        if not 0 <= a < N_ACTIONS:
-            raise ValueError(f"action must be in 0..{N_ACTIONS - 1}, got {action!r}")
+        if self._continuous:
+            a = np.array(action, dtype=np.float32)
+            if a.shape != (CONTINUOUS_DIM,) or not np.all(np.isfinite(a)) or np.abs(a).max() > 1.0:
+                raise ValueError(f"a continuous action is two finite shares in [-1, 1], got {action!r}")
+        else:
+            a = int(action)
+            if not 0 <= a < N_ACTIONS:
+                raise ValueError(f"action must be in 0..{N_ACTIONS - 1}, got {action!r}")
         self._actions.append(a)
         self._append(observation)
 
@@ -247,7 +300,11 @@ class TrajectoryRecorder:
         t = len(self._actions)
         traj = Trajectory(
             features=np.stack(self._features),
-            actions=np.asarray(self._actions, dtype=np.int8),
+            actions=(
+                np.array(self._actions, dtype=np.float32).reshape(t, CONTINUOUS_DIM)
+                if self._continuous
+                else np.asarray(self._actions, dtype=np.int8)
+            ),
             ranges=np.stack(self._ranges),
             poses=np.stack(self._poses),
             times=np.arange(t + 1, dtype=np.float64) * self._period,

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nirl_mj.data.features import N_FEATURES
-from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory
+from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, require_discrete
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,7 @@ class Transitions:
         outcome (the task's: an arrival ends worth it, any other end 0), ``progress`` the robot's
         poses and the task's target (the progress control's reward), and ``absorbing`` adds one
         absorbing row after each terminal trajectory."""
+        require_discrete(trajectories)
         parts = []
         for t in trajectories:
             n = len(t)

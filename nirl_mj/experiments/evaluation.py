@@ -28,7 +28,8 @@ def evaluate(
     on_episode: Callable[[Trajectory], None] | None = None,
 ) -> tuple[dict, list[Trajectory]]:
     """Runs the (greedy) ``policy`` on phi(s), or an Agent (an expert), once in each arena; returns
-    metrics and trajectories."""
+    metrics and trajectories. On a task with continuous actions the policy answers with the two
+    shares in [-1, 1] (or a discrete action, driven as its twin: ``sim.episode.run_episode``)."""
     agent = policy if hasattr(policy, "act") else PolicyAgent(policy, name)
     trajectories = []
     for seed in seeds:

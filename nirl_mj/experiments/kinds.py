@@ -65,27 +65,32 @@ def _rl(job, train: bool) -> Trained:
         demos = job.demos_path if m.algo in ADVERSARIAL else None
         ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
                           m.settings)  # fmt: skip
-    policy, record = load_rl_policy(job.run_dir)
+    policy, record = load_rl_policy(job.run_dir, shares=True)
     return Trained(policy, frozenset(record["train_seeds"]))
 
 
 def _dagger(job, train: bool) -> Trained:
     from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.data.trajectory import require_discrete
     from nirl_mj.experiments.dagger import train_dagger
     from nirl_mj.learn.bc import CloneSettings
 
     settings = CloneSettings.of(job.method.variant)
-    policy, arenas = train_dagger(job.task, load_dataset(job.demos_path), job.seed, job.expert,
-                                  settings=settings)  # fmt: skip
+    demos = load_dataset(job.demos_path)
+    require_discrete(demos, str(job.demos_path))
+    policy, arenas = train_dagger(job.task, demos, job.seed, job.expert, settings=settings)
     return Trained(policy, frozenset(arenas))
 
 
 def _bc(job, train: bool) -> Trained:
     from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.data.trajectory import require_discrete
     from nirl_mj.learn.bc import CloneSettings, behaviour_cloning
 
     settings = CloneSettings.of(job.method.variant)
-    return Trained(behaviour_cloning(load_dataset(job.demos_path), seed=job.seed, settings=settings))
+    demos = load_dataset(job.demos_path)
+    require_discrete(demos, str(job.demos_path))
+    return Trained(behaviour_cloning(demos, seed=job.seed, settings=settings))
 
 
 def _expert(job, train: bool) -> Trained:

@@ -110,9 +110,10 @@ def check_declarations(name: str, method: Any) -> None:
 
 
 def demonstration_arrays(trajectories: list) -> dict[str, np.ndarray]:
-    """The demonstrations as plain arrays (module docstring): one row per decision."""
-    from nirl_mj.data.trajectory import TERMINAL_OUTCOMES
+    """The demonstrations as plain arrays (module docstring): one row per decision (discrete actions)."""
+    from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, require_discrete
 
+    require_discrete(trajectories)
     obs, actions, next_obs, episode, terminals = [], [], [], [], []
     for i, t in enumerate(trajectories):
         n = len(t)
@@ -214,11 +215,14 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     arrays, environments on the run's training arenas, its budget and a work directory; never the
     test arenas. Returns its checked policy and the arenas its environments drew."""
     from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.data.trajectory import require_discrete
 
     name = job.method.plugin
     method = load_method(name, job.method.settings)
     reads = tuple(method.reads)
-    demos = demonstration_arrays(load_dataset(job.demos_path))
+    trajectories = load_dataset(job.demos_path)
+    require_discrete(trajectories, str(job.demos_path))
+    demos = demonstration_arrays(trajectories)
     budget = _Budget(job.method.name, job.method.steps, job.seed, frozenset(job.test_seeds))
     workdir = Path(job.run_dir)
     workdir.mkdir(parents=True, exist_ok=True)

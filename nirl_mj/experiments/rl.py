@@ -234,6 +234,9 @@ def train_rl(
     cls = _algorithm(algo)
     if algo == "dqn" and task.control.actions != "discrete":
         raise ValueError(f"dqn needs discrete actions; task {task.name} has continuous ones: use --algo ppo")
+    if algo in ADVERSARIAL and task.control.actions != "discrete":
+        raise ValueError(f"{algo}'s discriminator judges the six discrete actions; task {task.name} has "
+                         "continuous ones: accepted: --algo ppo")  # fmt: skip
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
     run = RunDir(run_dir)
@@ -411,7 +414,11 @@ def _twist_scale(model, record: dict) -> np.ndarray | None:
 
 
 def load_rl_policy(
-    run_dir: str | os.PathLike, sampled: bool = True, seed: int = 0, policy: str = "selected"
+    run_dir: str | os.PathLike,
+    sampled: bool = True,
+    seed: int = 0,
+    policy: str = "selected",
+    shares: bool = False,
 ) -> tuple[Callable[[np.ndarray], int | np.ndarray], dict]:
     """The trained RL policy on phi(s) and the run's record: the checkpoint its selection chose
     (``policy="selected"``; the last one for a run that selects none) or the last (``"last"``).
@@ -420,8 +427,10 @@ def load_rl_policy(
     each action is drawn from it with a generator seeded by ``seed``, so an evaluation is
     reproducible. Its mode (``sampled=False``) is a poor driver here: measured on 100 held-out
     arenas of navigate after 50,000 decisions, the mode alternates right60/left30 and circles
-    3-5 m from the target (0 % success), where sampling reaches the target (README). DQN, and
-    PPO with continuous actions, act by their deterministic mode."""
+    3-5 m from the target (0 % success), where sampling reaches the target
+    (docs/notebook/results.md). DQN, and PPO with continuous actions, act by their deterministic mode:
+    a continuous action in m/s and rad/s, or with ``shares`` as the float32 shares in [-1, 1] that
+    ``sim.episode.run_episode`` (``nirl-mj eval``) and the Gymnasium environment take."""
     run = RunDir(run_dir)
     record = run.read_record()
     if not is_rl_run(record):
@@ -449,11 +458,19 @@ def load_rl_policy(
         return sample, record
 
     scale = _twist_scale(model, record)
+    bounds = None  # a continuous model saved before the action space was normalised acts in m/s, rad/s
+    if scale is None and shares and record["task"]["control"].get("actions", "discrete") == "continuous":
+        from nirl_mj.sim.task import action_scale
+
+        bounds = action_scale(specs.from_dict(record["task"], "run record"))
 
     def mode(phi: np.ndarray) -> int | np.ndarray:
         action, _ = model.predict(scaled(phi), deterministic=True)
         if scale is not None:  # continuous, normalised: (forward m/s, yaw rate rad/s) for the task
-            return np.clip(action, -1.0, 1.0) * scale
+            share = np.clip(action, -1.0, 1.0)
+            return share.astype(np.float32) if shares else share * scale
+        if bounds is not None:
+            return np.clip(np.asarray(action, np.float64) / bounds, -1.0, 1.0).astype(np.float32)
         return action if np.ndim(action) else int(action)
 
     return mode, record

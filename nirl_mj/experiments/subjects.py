@@ -17,6 +17,7 @@ import numpy as np
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.rundir import POLICIES as RUN_POLICIES
 from nirl_mj.data.rundir import RUN_FILE, RunDir, RunError
+from nirl_mj.data.trajectory import require_discrete
 from nirl_mj.experiments.seeds import held_out_seeds, seen_seeds
 from nirl_mj.experiments.training import load_policy
 from nirl_mj.experts.policies import POLICIES
@@ -67,7 +68,7 @@ def run_subject(run_dir: str | os.PathLike, which: str = "selected", task: str |
             raise RunError(f"{run} is an RL run: --which takes {' or '.join(RUN_POLICIES)} (got {which!r})")
         from nirl_mj.experiments.rl import load_rl_policy  # needs the optional extra nirl-mj[gym]
 
-        policy, record = load_rl_policy(run_dir, policy=which)
+        policy, record = load_rl_policy(run_dir, policy=which, shares=True)
         name = f"rl-{record['algo']}"
     else:
         (policy, record), name = load_policy(run_dir, which), "nirl"
@@ -86,6 +87,7 @@ def reference_subject(
     if name == "bc":
         if not trajectories:
             raise FileNotFoundError("the bc policy needs --demos (the demonstrations to clone)")
+        require_discrete(trajectories, str(demos))
         policy = behaviour_cloning(trajectories, seed=train_seed)
     else:
         policy = POLICIES[name]

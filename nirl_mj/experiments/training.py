@@ -24,7 +24,7 @@ from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.data.dataset import dataset_digest, load_dataset
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
-from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.data.trajectory import Trajectory, require_discrete
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.reads import learner_reads
 from nirl_mj.experiments.seeds import domain_seeds
@@ -46,12 +46,16 @@ MINARI = "minari:"
 
 def load_demonstrations(source: str | os.PathLike) -> list[Trajectory]:
     """The trajectories of a dataset file (docs/DATASET.md), or of the local Minari dataset ID for
-    ``minari:ID`` (written by ``nirl-mj export``; needs the optional extra ``nirl-mj[gym]``)."""
+    ``minari:ID`` (written by ``nirl-mj export``; needs the optional extra ``nirl-mj[gym]``), for a
+    learner of the six discrete actions: demonstrations of continuous actions are a clear error."""
     if str(source).startswith(MINARI):
         from nirl_mj.gym.minari_export import load_minari
 
-        return load_minari(str(source)[len(MINARI) :])
-    return load_dataset(source)
+        trajectories = load_minari(str(source)[len(MINARI) :])
+    else:
+        trajectories = load_dataset(source)
+    require_discrete(trajectories, str(source))
+    return trajectories
 
 
 def run_config(record: dict[str, Any]) -> LearnerConfig:
@@ -121,6 +125,10 @@ def train(
     """Trains (or resumes) the configured method in ``run_dir``; returns the run record. One writer at
     a time (``nirl_mj.data.lock``); a resume checks the whole checkpoint and its agreement with the
     record and the metrics before it changes anything."""
+    if task.control.actions != "discrete":  # refused before the run directory is made
+        raise ValueError(f"task {task.name} has continuous actions, but NIRL and the IRL baselines learn a "
+                         'policy over the six discrete actions: accepted: a task with [control] actions = '
+                         '"discrete"')  # fmt: skip
     with DirectoryLock(run_dir, "training"):
         return _train(run_dir, task, demos_path, config, seed, resume, on_metrics)
 

@@ -3,7 +3,9 @@
 An expert is reset at the start of every episode with the environment and its
 first timestep, then asked for one action (0..5) per timestep. What it may
 look at differs: the planner reads the whole arena through ``env``; the
-sensor-based expert only ever reads ``timestep.observation``.
+sensor-based expert only ever reads ``timestep.observation``. On a task with
+continuous actions each decision is driven (and recorded) as the action's
+continuous twin (``nirl_mj.sim.drive.action_share``, by ``sim.episode.run_episode``).
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ import numpy as np
 from nirl_mj.gym.spaces import dict_space, space_of
 from nirl_mj.sim.observations import NAMES
 from nirl_mj.sim.spec import SpecError, TaskSpec, apply_overrides, from_dict, load_task
-from nirl_mj.sim.task import Outcome, make_env
+from nirl_mj.sim.task import Outcome, action_scale, make_env, share_twist
 
 CAMERAS = ("robotino/top", "robotino/chase", "overview")
 
@@ -89,7 +89,7 @@ class NavigationEnv(gymnasium.Env):
         self.action_space = space_of(self._env.action_spec())
         self.action_scale: np.ndarray | None = None  # continuous: (m/s, rad/s) of an action of 1
         if isinstance(self.action_space, gymnasium.spaces.Box):
-            self.action_scale = np.asarray(self.action_space.high, dtype=np.float64)
+            self.action_scale = action_scale(spec)  # = the Box's bounds
             self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.observation_space = (
             space_of(obs_spec[self._keys[0]]) if self._single else dict_space(obs_spec, self._keys)
@@ -143,7 +143,7 @@ class NavigationEnv(gymnasium.Env):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,) or not np.all(np.isfinite(a)):
             raise ValueError(f"action {action!r}: expected two finite numbers in [-1, 1]")
-        return np.clip(a, -1.0, 1.0) * self.action_scale
+        return share_twist(a, self.action_scale)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

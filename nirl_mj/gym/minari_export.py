@@ -6,7 +6,8 @@ reward or episode end. But an episode is a function of its arena seed and its ac
 arena seed, under Minari's ``DataCollector``: the Minari dataset gets the full observation Dict,
 rewards, terminations, truncations and the environment's spec (its id and the task as a dict), so
 ``minari.load_dataset(ID).recover_environment()`` builds the same environment and the episodes
-replay to the same observations bit for bit (the episode's seed is its arena seed). Every
+replay to the same observations bit for bit (the episode's seed is its arena seed). Continuous
+actions keep their float32 shares (the environment's ``Box(-1, 1, (2,))``). Every
 replayed state is checked against the file's phi(s), ranges and poses; a trajectory that does
 not replay (recorded by another version of the simulation) is an error naming it.
 
@@ -178,11 +179,12 @@ def _replay(env, trajectory: Trajectory, index: int):
     observations = {key: [value] for key, value in obs.items()}
     infos = {key: [info[key]] for key in INFO_KEYS}
     rewards, terminations, truncations = [], [], []
-    for t, action in enumerate(trajectory.actions.tolist()):
+    actions = _actions(trajectory)
+    for t, action in enumerate(actions):
         if terminations[-1:] == [True] or truncations[-1:] == [True]:
             raise MinariError(f"trajectory {index} (arena {seed}) ended after {t} of its "
                               f"{len(trajectory)} decisions when replayed")  # fmt: skip
-        obs, reward, terminated, truncated, info = env.step(np.int64(action))
+        obs, reward, terminated, truncated, info = env.step(action)
         _check_state(obs, trajectory, t + 1, index)
         for key in INFO_KEYS:
             infos[key].append(info[key])
@@ -194,10 +196,18 @@ def _replay(env, trajectory: Trajectory, index: int):
     if not (terminations[-1:] == [True] or truncations[-1:] == [True]):
         raise MinariError(f"trajectory {index} (arena {seed}) does not end after its {len(trajectory)} "
                           "decisions (abandoned?); Minari keeps finished episodes only")  # fmt: skip
-    return EpisodeBuffer(id=index, seed=seed, observations=observations,
-                         actions=[np.int64(a) for a in trajectory.actions.tolist()], rewards=rewards,
+    return EpisodeBuffer(id=index, seed=seed, observations=observations, actions=actions, rewards=rewards,
                          terminations=terminations, truncations=truncations,
                          infos={k: _info_array(v) for k, v in infos.items()})  # fmt: skip
+
+
+def _actions(trajectory: Trajectory) -> list:
+    """The trajectory's actions as the environment's action space holds them: ``np.int64`` indices
+    (``Discrete(6)``), or float32 (2,) shares (continuous actions, ``Box(-1, 1, (2,))``), exactly the
+    file's."""
+    if trajectory.action_kind == "continuous":
+        return [np.array(a, dtype=np.float32) for a in trajectory.actions]
+    return [np.int64(a) for a in trajectory.actions.tolist()]
 
 
 INFO_KEYS = ("is_success", "outcome", "steps")
@@ -241,6 +251,7 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
         spec = from_dict(env_spec.kwargs["task"], f"Minari dataset {dataset_id}")
     except SpecError as exc:
         raise MinariError(str(exc)) from None
+    continuous = spec.control.actions == "continuous"
     seeds = [m["seed"] for m in dataset.storage.get_episode_metadata(dataset.episode_indices)]
     demonstrator = dataset.storage.metadata.get("algorithm_name") or "minari"
     out = []
@@ -248,8 +259,10 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
         obs = episode.observations
         n = len(episode.actions)
         outcome = Outcome(int(obs["outcome"][-1, 0]))
+        actions = (np.asarray(episode.actions, dtype=np.float32).reshape(n, 2) if continuous
+                   else np.asarray(episode.actions, dtype=np.int8))  # fmt: skip
         out.append(Trajectory(
-            features=obs["features"], actions=np.asarray(episode.actions, dtype=np.int8),
+            features=obs["features"], actions=actions,
             ranges=obs["ranges"].astype(np.float32), poses=obs["pose"],
             times=np.arange(n + 1) * spec.control.decision_period, arena_seed=int(seed), task=spec,
             speed=spec.control.speed, outcome=outcome if outcome != Outcome.RUNNING else Outcome.TIMEOUT,

@@ -29,7 +29,7 @@ import numpy as np
 
 from nirl_mj.experts import EXPERT_KINDS, make_expert
 from nirl_mj.experts.policies import POLICIES
-from nirl_mj.sim.drive import ACTIONS
+from nirl_mj.sim.drive import ACTIONS, action_share
 
 _NEEDS_ENV = ("planner", "noisy")
 
@@ -38,8 +38,11 @@ class ExpertPolicy:
     """The expert ``kind`` (:data:`nirl_mj.experts.EXPERT_KINDS`) as ``policy(obs) -> action``.
 
     ``env``: the Gymnasium environment the policy drives (its ``unwrapped.dm_env``), required by
-    the planner and the noisy expert. ``options`` configure the noisy one (``base``, ``slip``,
-    ``random``, ``seed``: :func:`nirl_mj.experts.make_expert`).
+    the planner and the noisy expert; given the ``env`` of a task with continuous actions, the
+    policy answers each discrete choice as its continuous twin, float32 shares
+    (:func:`nirl_mj.sim.drive.action_share`, as ``nirl-mj demos`` records them). ``options``
+    configure the noisy one (``base``, ``slip``, ``random``, ``seed``:
+    :func:`nirl_mj.experts.make_expert`).
     """
 
     def __init__(self, kind: str, env=None, **options) -> None:
@@ -52,8 +55,9 @@ class ExpertPolicy:
         self._expert = make_expert(kind, **options)
         self._batch: list = []
         self._env = env
+        self._continuous = env is not None and env.unwrapped.task_spec.control.actions == "continuous"
 
-    def __call__(self, observation: Mapping[str, np.ndarray]) -> int:
+    def __call__(self, observation: Mapping[str, np.ndarray]) -> int | np.ndarray:
         if not isinstance(observation, Mapping) or "steps" not in observation:
             raise ValueError(
                 f"the {self.kind} expert takes the full Dict observation of a nirl_mj environment "
@@ -69,7 +73,8 @@ class ExpertPolicy:
             expert.reset(self._dm_env(), timestep)
         else:
             timestep = dm_env.transition(0.0, observation)
-        return int(expert.act(timestep))
+        action = int(expert.act(timestep))
+        return action_share(action) if self._continuous else action
 
     def _act_batch(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
         if self.kind in _NEEDS_ENV or self._options.get("base") == "planner":
@@ -90,7 +95,8 @@ def reference_policy(name: str, env=None):
     """A reference policy of :data:`nirl_mj.experts.policies.POLICIES` (``rule``, ``forward``) as
     ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself. Given the
     ``env`` it drives, of a task with continuous actions, it acts with :func:`twist_of` its
-    discrete choice, normalised as the environment's action space is."""
+    discrete choice, normalised as the environment's action space is
+    (:func:`nirl_mj.sim.drive.action_share`)."""
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
@@ -102,7 +108,7 @@ def reference_policy(name: str, env=None):
         action = int(on_phi(np.asarray(phi)))
         if not continuous:
             return action
-        return (twist_of(action, task) / env.unwrapped.action_scale).astype(np.float32)
+        return action_share(action)  # = twist_of(action, task) / env.unwrapped.action_scale, float32
 
     policy.__name__ = name
     return policy

@@ -30,6 +30,7 @@ __all__ = [
     "BODY_RADIUS",
     "DriveController",
     "action_profile",
+    "action_share",
     "body_twist",
     "max_yaw_rate",
     "rate_limit",
@@ -216,6 +217,15 @@ def max_yaw_rate(period: float) -> float:
     """The largest yaw rate (rad/s) of a continuous action: held for a whole decision of
     ``period`` seconds it turns 60 degrees, as the sharpest discrete action does."""
     return math.radians(60.0) / period
+
+
+def action_share(action: int) -> np.ndarray:
+    """The continuous action that stands for discrete ``action``: float32 (2,), the shares in
+    [-1, 1] of the speed (its direction, +-1) and of :func:`max_yaw_rate` (its turn over 60
+    degrees: 0, +-0.5, +-1). Held for a decision it drives as far and turns as far as the discrete
+    action (which ramps its yaw rate along a trapezoid instead of holding one)."""
+    act = _check_action(action)
+    return np.array([act.direction, act.turn / math.radians(60.0)], dtype=np.float32)
 
 
 def rate_limit(

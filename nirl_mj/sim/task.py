@@ -418,6 +418,21 @@ def continuous_action_spec(spec: TaskSpec) -> specs.BoundedArray:
     return specs.BoundedArray((2,), np.float64, [-speed, -yaw], [speed, yaw], name="action")
 
 
+def action_scale(spec: TaskSpec) -> np.ndarray:
+    """(m/s, rad/s) of a continuous action of 1, float64 (2,): the task's speed and the yaw rate that
+    turns 60 degrees a decision. Continuous actions are recorded (datasets) and taken (Gymnasium) as
+    shares of it in [-1, 1]; :func:`share_twist` turns a share into the twist the task takes."""
+    return np.asarray(continuous_action_spec(spec).maximum, dtype=np.float64)
+
+
+def share_twist(share, scale: np.ndarray) -> np.ndarray:
+    """The twist (forward m/s, yaw rate rad/s) of the continuous action ``share`` (two numbers, clipped
+    to [-1, 1]), in float64: ``clip(share, -1, 1) * scale``. The one computation of the episode loop
+    (``sim.episode.run_episode``) and the Gymnasium environment (``gym.env.NavigationEnv.twist``), so
+    the float32 shares a dataset holds replay bit for bit through either."""
+    return np.clip(np.asarray(share, dtype=np.float64).reshape(-1), -1.0, 1.0) * scale
+
+
 def _checked_twist(action, bounds: specs.BoundedArray) -> tuple[float, float]:
     """A continuous action as (forward m/s, yaw rate rad/s), or a clear error. A value a float32
     rounding beyond a bound (Gymnasium and Stable-Baselines3 act in float32) counts as the bound."""
