@@ -67,7 +67,8 @@ def test_run_recording_matches_the_episode(tmp_path, episode):
     n = len(trajectory) + 1
     for prefix in ("/demos/000", "/eval/nirl_default/000"):
         for name in ("arena/obstacles", "arena/cylinders", "arena/border", "arena/start_target", "path",
-                     "robot/footprint", "robot/heading", "robot/marker", "reward_path", "label"):  # fmt: skip
+                     "robot/footprint", "robot/heading", "robot/marker", "reward_path", "label",
+                     "end", "end/label"):  # fmt: skip
             assert all(c.is_static for c in chunks[f"{prefix}/{name}"]), name
         states = (
             "robot",
@@ -107,12 +108,26 @@ def test_run_recording_matches_the_episode(tmp_path, episode):
             np.array(centres[0])[:, :2], [(o.x, o.y) for o in layout.moving], atol=1e-4
         )
         assert not np.allclose(centres[0], centres[-1])  # they move
+        # The end: a dot where the robot stopped, labelled with the outcome; the arena's label too.
+        end = chunks[f"{prefix}/end"][0].to_record_batch()
+        np.testing.assert_allclose(end.column("Points3D:positions").to_pylist()[0][0][:2],
+                                   trajectory.poses[-1, :2], atol=1e-4)  # fmt: skip
+        word = {"target": "arrived", "physics_error": "physics error"}.get(
+            trajectory.outcome, trajectory.outcome
+        )
+        end_label = chunks[f"{prefix}/end/label"][0].to_record_batch()
+        assert end_label.column("Points3D:labels").to_pylist() == [[word]]
+        assert np.hypot(*np.subtract(end_label.column("Points3D:positions").to_pylist()[0][0][:2],
+                                     trajectory.poses[-1, :2])) < 5.0  # fmt: skip
+        label = chunks[f"{prefix}/label"][0].to_record_batch().column("Points3D:labels").to_pylist()
+        assert label == [[f"000 {word}"]]
     margin = chunks["/training/margin"]
     temporal = [c for c in margin if not c.is_static]
     assert sum(c.num_rows for c in temporal) == 4
-    # On ``step`` too (at the iteration), the timeline the layout opens on.
-    assert all({"episode", "step"} <= set(c.timeline_names) for c in temporal)
-    assert column(margin, "Scalars:scalars", "episode") == [[1.0], [0.5], [1.0 / 3], [0.25]]
+    # Only on ``iteration``: never on an episode's ``step`` or ``time``.
+    assert all(set(c.timeline_names) == {"iteration"} for c in temporal)
+    assert column(margin, "Scalars:scalars", "iteration") == [[1.0], [0.5], [1.0 / 3], [0.25]]
+    assert chunks["/training/figure"][0].is_static
     for name in (*ACTION_NAMES, "grid", "values", "info"):
         assert chunks[f"/reward_map/{name}"][0].is_static, name
     assert len(rerun.chunk.RrdReader(path).blueprints()) == 1

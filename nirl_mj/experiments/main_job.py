@@ -216,6 +216,7 @@ def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: st
         reward=RewardModel.from_dict(nirl.read_reward()),
         map_arena=(specs.from_dict(first_test.task, "test episode task"), first_test.arena_seed),
         focus=focus,
+        reward_of=ROWS["NIRL"],
     )
 
 

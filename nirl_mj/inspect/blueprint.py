@@ -1,50 +1,81 @@
-"""The layout a recording opens with (a Rerun blueprint), chosen so that every view shows data
-without a click.
+"""The layout a recording opens with (a Rerun blueprint): one screen at a time, the rest a click away.
 
-Rerun shows one timeline at a time and the blueprint cannot give a view a timeline of its own, so
-everything the layout shows lives on one timeline, :data:`TIMELINE` (``step``): an episode's states
-and decisions at their decision index, the training scalars at their iteration (they are on
-``episode`` too). The time panel opens on it, paused at its start, rather than following to the
-end of the longest episode.
+Timelines. An episode's states and decisions are on :data:`TIMELINE` (``step``, the decision
+index) and ``time`` (simulated seconds); the training scalars only on :data:`ITERATION`
+(``iteration``, the learner's iteration), so that moving the cursor over an episode never moves
+one over the training curves. Rerun shows one timeline at a time and a view cannot choose its
+own (rerun-io/rerun#6828), so the layout shows training where the timeline does not matter: a
+figure of the curves (a static image) and a table of their values per iteration (a dataframe
+view, which queries ``iteration`` whatever the time panel shows). The time panel opens on
+``step``, paused at its start.
 
-Left, a tab per episode group (``demos``, ``eval/<policy>``): every episode of the group at once
-from above (the paper's Fig. 5, live: :func:`tile_offsets` places the arenas side by side), and a
-tab per episode with its arena in 3-D and from above, phi(s) in three plots by scale, r_theta and
-the actions, so the plots follow the chosen episode. Right, the training curves in a grid (a plot
-per scale, :data:`nirl_mj.inspect.styles.TRAINING_PLOTS`) above the reward map.
+Tabs along the top, one per part of the recording (:func:`default_blueprint`), each named after
+its method: ``demonstrations``; ``<method> training`` (the curves, the values) and ``<method>
+reward map`` for the method whose reward was learned; a tab per tested method (``NIRL``,
+``always forward``, ...) holding only its own test episodes. An episode group's tab
+(:func:`group_tab`): left, all its recorded episodes at once from above (the paper's Fig. 5,
+live: :func:`tile_offsets`), named with the real counts (``first 10 of 100 test episodes``), and
+under them the colour legend of everything drawn in the tab (an image, ``legend/<group>``); right,
+a tab per episode (:func:`episode_tab`): its arena from above or in 3-D, its actions, and phi(s)
+by scale and r_theta in plots without in-plot legends (the legend image names their colours).
 
-Cameras are placed before the viewer knows a view's size in pixels; they assume the narrowest
-views of a 16:9 screen (width/height about 0.75 for an episode, 0.55 for a group) and so leave a
-margin in wider ones.
+Cameras are placed before the viewer knows a view's size in pixels; they assume the views of a
+1600 x 860 screen (width/height about 1.0 for an episode, 1.15 for a group) and so leave a margin
+in wider ones.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 import rerun.blueprint as rrb
 
 from nirl_mj.data.features import ACTION_NAMES
-from nirl_mj.inspect.styles import FEATURE_GROUPS, TRAINING_PLOTS
+from nirl_mj.inspect.styles import FEATURE_GROUPS
 
 TIMELINE = "step"
-"""The timeline the viewer opens on; every view of the default layout has data there."""
+"""The timeline the viewer opens on: an episode's decision index (``time`` runs beside it)."""
+ITERATION = "iteration"
+"""The training scalars' timeline: the learner's iteration (never on :data:`TIMELINE`)."""
 TILE_GAP = 10.0  # m between neighbouring arenas of a group view
-_EPISODE_ASPECT = 0.75  # width/height of an episode's 3-D views in the layout, roughly
-_GROUP_ASPECT = 0.55  # of a group's view
+_EPISODE_ASPECT = 1.0  # width/height of an episode's 3-D views in the layout, roughly
+_GROUP_ASPECT = 1.15  # of a group's view
 _FOV = math.radians(55.0)  # Rerun's default vertical field of view of a 3-D view
 _GROUP_TABS = 12  # groups beyond these are left out of the layout (still in the file)
+OUTCOME_WORDS = {"target": "arrived", "collision": "collision", "timeout": "timeout",
+                 "physics_error": "physics error"}  # fmt: skip
+"""An episode's outcome as its labels say it."""
 
 
 class Scene(NamedTuple):
     """An episode as the layout sees it: entity path (``demos/007``), arena size (w, h) metres,
-    and whether r_theta was logged along it."""
+    whether r_theta was logged along it, and its outcome."""
 
     path: str
     size: tuple[float, float]
     reward: bool
+    outcome: str = "target"
+
+
+class Group(NamedTuple):
+    """A group of episodes (``demos``, ``eval/nirl``) as its tab names it: ``title`` (the tab:
+    ``demonstrations``, ``NIRL``), ``noun`` (``demonstrations``, ``test episodes``) and ``total``,
+    how many episodes there are of which the recording holds the first ones (None: all)."""
+
+    path: str
+    title: str
+    noun: str = "episodes"
+    total: int | None = None
+
+
+def counted(group: Group, recorded: int) -> str:
+    """``all 30 demonstrations`` or ``first 10 of 100 test episodes``: what a group's tab holds."""
+    total = recorded if group.total is None else group.total
+    if recorded >= total:
+        return f"all {recorded} {group.noun}"
+    return f"first {recorded} of {total} {group.noun}"
 
 
 def groups_of(scenes: Sequence[Scene]) -> dict[str, list[Scene]]:
@@ -57,7 +88,7 @@ def groups_of(scenes: Sequence[Scene]) -> dict[str, list[Scene]]:
 
 def tile_offsets(scenes: Sequence[Scene]) -> dict[str, tuple[float, float]]:
     """Where each episode sits in its group's view (x, y metres): the group's arenas on a grid with
-    about as many columns as a tall view holds best (sqrt(0.55 N)), rows going south so that the
+    about as many columns as the view holds best (sqrt(1.15 N)), rows going south so that the
     episodes read left to right, top to bottom."""
     out = {}
     for group in groups_of(scenes).values():
@@ -91,95 +122,146 @@ def _looking_north(size: tuple[float, float]) -> rrb.EyeControls3D:
     )
 
 
-def _plot(
-    origin: str, name: str, contents: Sequence[str] | None = None, legend: bool = True
-) -> rrb.TimeSeriesView:
-    """A time series view; the legend sits top left, where curves that settle leave room."""
-    return rrb.TimeSeriesView(
-        origin=origin,
-        name=name,
-        contents=list(contents) if contents is not None else "$origin/**",
-        plot_legend=rrb.PlotLegend(corner="LeftTop", visible=legend),
-    )
+def _plot(origin: str, name: str) -> rrb.TimeSeriesView:
+    """A time series view without an in-plot legend (it would cover the curves): the tab's legend
+    image names the colours, and hovering a curve names it."""
+    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=rrb.PlotLegend(visible=False))
 
 
-def episode_tab(scene: Scene) -> rrb.Container:
-    """One episode: its arena in 3-D and from above, beside phi(s) by scale, r_theta and the actions."""
+_ACTION_COLUMNS = rrb.TextLogColumns(timeline_columns=[TIMELINE], text_log_columns=["body"])
+"""The actions' log: the decision and the action (not the entity path or a level)."""
+
+
+def episode_tab(scene: Scene, method: str = "NIRL") -> rrb.Container:
+    """One episode: its arena from above and in 3-D (tabs) above its actions, beside phi(s) by
+    scale and r_theta of ``method``'s learned reward."""
     p = f"/{scene.path}"
     space = rrb.Vertical(
-        rrb.Spatial3DView(origin=p, name=f"{scene.path} 3-D", eye_controls=_looking_north(scene.size)),
-        rrb.Spatial3DView(origin=p, name=f"{scene.path} from above",
-                          eye_controls=_looking_down((0.0, 0.0), scene.size, _EPISODE_ASPECT)),
-        rrb.TextLogView(origin=f"{p}/action", name="actions"),
-        row_shares=[4, 4, 2],
+        rrb.Tabs(
+            rrb.Spatial3DView(origin=p, name="from above",
+                              eye_controls=_looking_down((0.0, 0.0), scene.size, _EPISODE_ASPECT)),
+            rrb.Spatial3DView(origin=p, name="3-D, from the south", eye_controls=_looking_north(scene.size)),
+        ),
+        rrb.TextLogView(origin=f"{p}/action", name="actions", columns=_ACTION_COLUMNS),
+        row_shares=[4, 1],
     )  # fmt: skip
-    plots: list[Any] = [
-        _plot(f"{p}/features/{g.name}", g.title, legend=len(g.colours) > 1) for g in FEATURE_GROUPS
-    ]
-    shares = [len(g.colours) if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]  # room for the legends
+    plots: list[Any] = [_plot(f"{p}/features/{g.name}", g.title) for g in FEATURE_GROUPS]
+    shares = [3 if len(g.colours) > 1 else 2 for g in FEATURE_GROUPS]
     if scene.reward:
-        plots.append(_plot(f"{p}/reward", "r_theta(s_t, a_t)", legend=False))
+        plots.append(_plot(f"{p}/reward", f"r_theta ({method}'s learned reward)"))
         shares.append(2)
-    return rrb.Horizontal(space, rrb.Vertical(*plots, row_shares=shares), name=scene.path.rsplit("/", 1)[-1])
+    plots_column = rrb.Vertical(*plots, row_shares=shares)
+    return rrb.Horizontal(space, plots_column, column_shares=[5, 4], name=scene.path.rsplit("/", 1)[-1])
 
 
-def group_tab(group: str, scenes: Sequence[Scene], active: int = 0) -> rrb.Container:
-    """A group's episodes: all at once from above, next to a tab per episode (``active`` open)."""
+def legend_entity(group: str) -> str:
+    """Where a group's colour legend (an image) is logged: ``legend/<group>``."""
+    return f"legend/{group}"
+
+
+_NOT_IN_GROUP_VIEW = ("end/label", "arena/start_target")
+"""An episode's labelled entities that a group's view of many arenas leaves out."""
+
+
+def group_tab(group: Group, scenes: Sequence[Scene], active: int = 0, method: str = "NIRL") -> rrb.Container:
+    """A group's episodes: all at once from above, named with the counts, above the legend; next to
+    them a tab per episode (``active`` open). The group's view leaves out each episode's labelled
+    start and target and its end's label (:data:`_NOT_IN_GROUP_VIEW`): they would crowd the small
+    arenas; the arena's own label names the outcome, the paths show where start and target are."""
     offsets = tile_offsets(scenes)
     low = (min(offsets[s.path][0] for s in scenes), min(offsets[s.path][1] for s in scenes))
     high = (max(offsets[s.path][0] + s.size[0] for s in scenes),
             max(offsets[s.path][1] + s.size[1] for s in scenes))  # fmt: skip
-    overview = rrb.Spatial3DView(origin=f"/{group}", name=f"{group}: all {len(scenes)} episodes",
-                                 eye_controls=_looking_down(low, high, _GROUP_ASPECT))  # fmt: skip
-    episodes = rrb.Tabs(*[episode_tab(s) for s in scenes], active_tab=active)
-    return rrb.Horizontal(overview, episodes, column_shares=[2, 3], name=group)
-
-
-def training_grid(keys: Sequence[str]) -> rrb.Container | None:
-    """The training curves of ``keys`` (logged keys), a plot per scale, two plots per row."""
-    plots = []
-    for plot in TRAINING_PLOTS:
-        present = [k for k in plot.series if k in keys]
-        if present:
-            contents = [f"/training/{k}" for k in present]
-            plots.append(_plot("/training", plot.title, contents, legend=len(present) > 1))
-    return rrb.Grid(*plots, grid_columns=2, name="training") if plots else None
-
-
-def reward_map_tabs() -> rrb.Container:
-    """The recovered reward map: all bearings and actions, one image per action, the explanation."""
-    return rrb.Tabs(
-        rrb.Spatial2DView(origin="/reward_map/grid", name="reward map"),
-        *[rrb.Spatial2DView(origin=f"/reward_map/{a}", name=f"r_theta {a}") for a in ACTION_NAMES],
-        rrb.TextDocumentView(origin="/reward_map/info", name="about the map"),
+    overview = rrb.Spatial3DView(
+        origin=f"/{group.path}",
+        contents=["$origin/**", *[f"- /{s.path}/{part}" for s in scenes for part in _NOT_IN_GROUP_VIEW]],
+        name=f"{counted(group, len(scenes))}, from above",
+        eye_controls=_looking_down(low, high, _GROUP_ASPECT),
     )
+    legend = rrb.Spatial2DView(origin=f"/{legend_entity(group.path)}", name="colours")
+    left = rrb.Vertical(overview, legend, row_shares=[3, 2])
+    episodes = rrb.Tabs(*[episode_tab(s, method) for s in scenes], active_tab=active)
+    return rrb.Horizontal(left, episodes, column_shares=[1, 2], name=group.title)
+
+
+TRAINING_FIGURE = "training/figure"
+"""The training curves as one static image (``styles.training_figure``)."""
+
+
+def training_tab(method: str = "NIRL") -> rrb.Container:
+    """The training curves (a figure) and, a tab away, their values per iteration (a table on
+    :data:`ITERATION`)."""
+    return rrb.Tabs(
+        rrb.Spatial2DView(origin=f"/{TRAINING_FIGURE}", name="curves"),
+        rrb.DataframeView(
+            origin="/training",
+            contents=["$origin/**", f"- /{TRAINING_FIGURE}"],
+            name="values per iteration",
+            query=rrb.archetypes.DataframeQuery(timeline=ITERATION),
+        ),
+        name=f"{method} training",
+    )
+
+
+def reward_map_tab(method: str = "NIRL") -> rrb.Container:
+    """The recovered reward map: all bearings and actions, one image per action (tabs), beside the
+    explanation of what and which colours they show."""
+    images = rrb.Tabs(
+        rrb.Spatial2DView(origin="/reward_map/grid", name="all bearings and actions"),
+        *[rrb.Spatial2DView(origin=f"/reward_map/{a}", name=a) for a in ACTION_NAMES],
+    )
+    about = rrb.TextDocumentView(origin="/reward_map/info", name="about the map")
+    return rrb.Horizontal(images, about, column_shares=[3, 1], name=f"{method} reward map")
 
 
 def default_blueprint(
     scenes: Sequence[Scene],
-    training_keys: Sequence[str] = (),
+    training: bool = False,
     reward_map: bool = False,
     focus: str | None = None,
+    groups: Mapping[str, Group] | None = None,
+    method: str = "NIRL",
 ) -> rrb.Blueprint:
-    """The layout a recording opens with (module docstring): the episodes of ``scenes`` by group,
-    the training curves of ``training_keys`` and, if logged, the reward map. The tabs of the
-    episode ``focus`` (an entity path) are open, else those of the first group's first episode."""
-    columns: list[Any] = []
-    groups = list(groups_of(scenes).items())[:_GROUP_TABS]
-    if groups:
-        where = [
-            (g, i) for g, (_, s) in enumerate(groups) for i, scene in enumerate(s) if scene.path == focus
-        ]
-        group, episode = where[0] if where else (0, 0)
-        tabs = [group_tab(g, s, episode if k == group else 0) for k, (g, s) in enumerate(groups)]
-        columns.append(rrb.Tabs(*tabs, active_tab=group))
-    right = [c for c in (training_grid(training_keys), reward_map_tabs() if reward_map else None) if c]
-    if right:
-        columns.append(rrb.Vertical(*right, row_shares=[3, 2][: len(right)]))
-    root = rrb.Horizontal(*columns, column_shares=[3, 2][: len(columns)]) if columns else rrb.Spatial3DView()
+    """The layout a recording opens with (module docstring): a tab per episode group of ``scenes``
+    (named by ``groups``, else by their paths), ``method``'s training and reward map tabs when
+    ``training`` and ``reward_map``. The tabs of the episode ``focus`` (an entity path) are open,
+    or with ``focus`` ``"training"`` or ``"reward_map"`` that tab; else those of the first group's
+    first episode."""
+    groups = dict(groups or {})
+    by_group = list(groups_of(scenes).items())[:_GROUP_TABS]
+    where = [(g, i) for g, (_, s) in enumerate(by_group) for i, scene in enumerate(s) if scene.path == focus]
+    chosen, episode = where[0] if where else (0, 0)
+    tabs: list[Any] = []
+    active = 0
+    extras = [
+        (name, tab)
+        for name, tab, wanted in (
+            ("training", training_tab(method), training),
+            ("reward_map", reward_map_tab(method), reward_map),
+        )
+        if wanted
+    ]
+    placed: dict[str, int] = {}
+
+    def add_extras() -> None:
+        for name, tab in extras:
+            placed[name] = len(tabs)
+            tabs.append(tab)
+        extras.clear()
+
+    for k, (path, members) in enumerate(by_group):
+        if k == chosen:
+            active = len(tabs)
+        group = groups.get(path, Group(path, path))
+        tabs.append(group_tab(group, members, episode if k == chosen else 0, method))
+        if path == "demos":  # the learner's own tabs follow what it learned from
+            add_extras()
+    add_extras()
+    active = placed.get(focus or "", active)
+    root = rrb.Tabs(*tabs, active_tab=active) if tabs else rrb.Spatial3DView()
     return rrb.Blueprint(
         root,
-        rrb.TimePanel(timeline=TIMELINE, play_state="paused", state="collapsed"),
+        rrb.TimePanel(timeline=TIMELINE if scenes else ITERATION, play_state="paused", state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
     )

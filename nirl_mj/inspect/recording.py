@@ -11,17 +11,21 @@ Entity paths of an episode under ``P`` (``demos/007``, ``eval/nirl/003``;
 docs/INSPECT.md lists everything, with the blueprint):
 
 - static: ``P/arena/{obstacles,cylinders,border,start_target}``, ``P/path``
-  (line strip coloured by outcome), ``P/robot/footprint`` and
-  ``P/robot/heading`` (in the robot's frame), ``P/reward_path`` (the path's
-  segments coloured by r_theta, with a learned reward);
+  (line strip coloured by outcome), ``P/end`` (the last position, in the outcome's
+  colour) and ``P/end/label`` (the outcome's word just north of it), ``P/label``
+  (the episode's index and outcome, north of the arena),
+  ``P/robot/footprint`` and ``P/robot/heading`` (in the robot's frame),
+  ``P/reward_path`` (the path's segments coloured by r_theta, with a learned reward);
 - on the ``step`` (decision index) and ``time`` (simulated seconds)
   timelines: ``P/robot`` (pose, a 3-D transform), ``P/robot/rays`` (nine
   rays), ``P/action`` (text), ``P/features`` (the 16 values of phi(s)),
   ``P/reward`` (r_theta(s_t, a_t), with a learned reward), and
   ``P/arena/moving`` (moving obstacles).
 
-Training scalars are under ``training/<name>`` on the ``episode`` timeline
-(one row per NIRL iteration); the recovered-reward map under ``reward_map/``.
+Training scalars are under ``training/<name>`` on the ``iteration`` timeline only
+(one row per NIRL iteration; never on ``step``), and drawn as one static figure
+(``training/figure``); the recovered-reward map under ``reward_map/``; each episode
+group's colour legend, an image of every colour its tab draws, under ``legend/<group>``.
 :class:`Recording` writes a file atomically (:class:`nirl_mj.data.atomic.AtomicFile`).
 """
 
@@ -29,7 +33,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -39,14 +43,28 @@ import rerun as rr
 from nirl_mj.data.atomic import AtomicFile
 from nirl_mj.data.features import ACTION_NAMES, N_ACTIONS, SENSOR_ANGLES, danger_levels
 from nirl_mj.data.trajectory import Trajectory
-from nirl_mj.inspect.blueprint import TIMELINE, Scene, default_blueprint, tile_offsets
+from nirl_mj.inspect.blueprint import (
+    ITERATION,
+    OUTCOME_WORDS,
+    TIMELINE,
+    TRAINING_FIGURE,
+    Group,
+    Scene,
+    default_blueprint,
+    legend_entity,
+    tile_offsets,
+)
 from nirl_mj.inspect.styles import (
     FEATURE_GROUPS,
     REWARD_COLOUR,
     TRAINING_KEYS,
+    LegendSection,
+    Swatch,
     feature_names,
+    legend_image,
     log_series_style,
     log_training_styles,
+    training_figure,
 )
 from nirl_mj.sim.drive import BODY_RADIUS
 from nirl_mj.sim.layout import Layout, advance, generate_layout
@@ -73,6 +91,9 @@ DANGER_COLOURS = np.array(
      (250, 145, 55), (240, 105, 45), (225, 65, 40), (200, 20, 30)], dtype=np.uint8,
 )  # fmt: skip
 """RGB of danger levels 0 (nothing in range: green) .. 7 (closest: dark red), shape (8, 3)."""
+_START = (40, 90, 220)
+_TARGET = (40, 170, 60)
+_SCALE = ((40, 90, 220), (200, 200, 200), (220, 40, 40))  # r_theta along a path: lowest, middle, highest
 _RAY_HEIGHT = 0.06  # m: the sensors' height on the robot
 # Widths in screen points (Rerun reads a negative radius so): the robot, its rays and its path stay
 # visible whether a view shows one arena or thirty, and the path never hides the robot.
@@ -80,7 +101,21 @@ _PATH_WIDTH = rr.Radius.ui_points(2.0)
 _REWARD_PATH_WIDTH = rr.Radius.ui_points(1.2)
 _RAY_WIDTH = rr.Radius.ui_points(1.5)
 _MARKER = rr.Radius.ui_points(6.0)
+_END = rr.Radius.ui_points(5.0)
+_END_LABEL = 3.0  # m north of the end: where its label sits
 _HEADING = 2.0  # m: the heading arrow's length, past the 0.225 m body so that it shows from afar
+
+
+def png_image(rgb: np.ndarray) -> rr.EncodedImage:
+    """An (H, W, 3) uint8 figure as a PNG-encoded image: lossless (a legend's colours stay exact)
+    and a tenth of the raw pixels' size, so the viewer loads it quickly."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(rgb).save(buffer, format="PNG", optimize=False)
+    return rr.EncodedImage(contents=buffer.getvalue(), media_type="image/png")
 
 
 def layout_of(trajectory: Trajectory) -> Layout:
@@ -139,7 +174,7 @@ def log_layout(rec: rr.RecordingStream, path: str, layout: Layout, height: float
         f"{path}/start_target",
         rr.Points3D(
             [(*layout.start, 0.0), (*layout.target, 0.0)],
-            colors=[(40, 90, 220), (40, 170, 60)],
+            colors=[_START, _TARGET],
             radii=[0.5, 1.0],
             labels=["start", "target"],
         ),
@@ -191,10 +226,19 @@ def _colour_scale(values: np.ndarray) -> np.ndarray:
     values = np.asarray(values, dtype=np.float64)
     span = np.ptp(values) if values.size else 0.0
     u = (values - values.min()) / span if span > 0 else np.full(values.shape, 0.5)
-    low, mid, high = np.array([40, 90, 220.0]), np.array([200, 200, 200.0]), np.array([220, 40, 40.0])
+    low, mid, high = (np.array(c, dtype=np.float64) for c in _SCALE)
     w = u[:, None]
     out = np.where(w < 0.5, low + (mid - low) * (2 * w), mid + (high - mid) * (2 * w - 1))
     return out.astype(np.uint8)
+
+
+def _action_texts(trajectory: Trajectory) -> list[str]:
+    """The actions as the log shows them: a name (``forward``), or a continuous action's shares of
+    the forward speed and the yaw rate."""
+    actions = np.asarray(trajectory.actions)
+    if actions.ndim == 2:
+        return [f"speed {v:+.2f}, turn {w:+.2f}" for v, w in actions]
+    return np.asarray(ACTION_NAMES)[actions].tolist()
 
 
 def log_trajectory(
@@ -204,7 +248,9 @@ def log_trajectory(
     reward: RewardModel | None = None,
     layout: Layout | None = None,
 ) -> None:
-    """Logs one episode under ``path``: the path and the robot's footprint and marker (static); per
+    """Logs one episode under ``path``: the path, its end (a dot in the outcome's colour, and just
+    north of it its label: ``collision`` where the robot hit something) and the robot's footprint
+    and marker (static); per
     decision on the ``step`` and ``time`` timelines the robot's pose, its sensor rays, the action,
     phi(s) (``features/danger``, ``features/target``, ``features/flags``: one entity per scale),
     r_theta(s_t, a_t) when ``reward`` is given, and the moving obstacles of ``layout``. Series are
@@ -221,6 +267,12 @@ def log_trajectory(
         rr.LineStrips3D([points], colors=[_PATH[trajectory.outcome]], radii=_PATH_WIDTH),
         static=True,
     )
+    colour = _PATH[trajectory.outcome]
+    rec.log(f"{path}/end", rr.Points3D([(*poses[-1, :2], 0.35)], colors=[colour], radii=_END), static=True)
+    # The label a little north of the dot: an arrival's would cover the target's own label.
+    word = rr.Points3D([(poses[-1, 0], poses[-1, 1] + _END_LABEL, 0.35)], colors=[colour], radii=[0.0],
+                       labels=[OUTCOME_WORDS[trajectory.outcome]], show_labels=True)  # fmt: skip
+    rec.log(f"{path}/end/label", word, static=True)
     rec.log(
         f"{path}/robot/footprint",
         rr.Cylinders3D(centers=[(0, 0, 0.15)], radii=[BODY_RADIUS], lengths=[0.3], colors=[_ROBOT]),
@@ -259,8 +311,9 @@ def log_trajectory(
         rec.send_columns(entity, indexes=states, columns=rr.Scalars.columns(scalars=features[:, group.index]))
     if len(trajectory):
         decisions = _indexes(trajectory, n - 1)
-        names = np.asarray(ACTION_NAMES)[trajectory.actions]
-        rec.send_columns(f"{path}/action", indexes=decisions, columns=rr.TextLog.columns(text=names.tolist()))
+        rec.send_columns(
+            f"{path}/action", indexes=decisions, columns=rr.TextLog.columns(text=_action_texts(trajectory))
+        )
         if reward is not None:
             phi, actions = trajectory.pairs()
             r = np.asarray(reward.reward(phi, actions), dtype=np.float64)
@@ -300,13 +353,14 @@ def log_episode(
     reward: RewardModel | None = None,
 ) -> Layout:
     """:func:`log_layout` of the trajectory's regenerated arena under ``path/arena`` and
-    :func:`log_trajectory` under ``path``, and the episode's index (``007``) centred north of the
-    arena (``path/label``: short, so that the labels of a group's tiled arenas do not overlap; the
-    path's colour tells the outcome). Returns the layout."""
+    :func:`log_trajectory` under ``path``, and the episode's index and outcome (``007 collision``,
+    in the outcome's colour) centred north of the arena (``path/label``: short, so that the labels
+    of a group's tiled arenas do not overlap). Returns the layout."""
     layout = layout_of(trajectory)
     height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
-    name = path.rsplit("/", 1)[-1]
-    label = rr.Points3D([(layout.size[0] / 2, layout.size[1] + 4.0, 0.0)], radii=[0.0], labels=[name])
+    name = f"{path.rsplit('/', 1)[-1]} {OUTCOME_WORDS[trajectory.outcome]}"
+    label = rr.Points3D([(layout.size[0] / 2, layout.size[1] + 4.0, 0.0)], radii=[0.0], labels=[name],
+                        colors=[_PATH[trajectory.outcome]], show_labels=True)  # fmt: skip
     rec.log(f"{path}/label", label, static=True)
     log_layout(rec, f"{path}/arena", layout, height)
     log_trajectory(rec, path, trajectory, reward, layout)
@@ -315,20 +369,18 @@ def log_episode(
 
 def log_training(rec: rr.RecordingStream, metrics: Sequence[dict], prefix: str = "training") -> set[str]:
     """Training scalars (margin, cost, weight changes, accuracies, success; :data:`TRAINING_KEYS`),
-    one row per metrics dict at its ``episode`` (the NIRL iteration) on the ``episode`` timeline
-    and on :data:`TIMELINE` (``step``), where the default layout shows them next to the episodes.
-    Returns the keys logged."""
+    one row per metrics dict at its ``episode`` (the NIRL iteration) on the :data:`ITERATION`
+    timeline only (columnar, so without the automatic ``log_time`` either): an episode's ``step``
+    is another axis. Returns the keys logged."""
     logged = set()
-    for row in metrics:
-        iteration = int(row["episode"])
-        rec.set_time("episode", sequence=iteration)
-        rec.set_time(TIMELINE, sequence=iteration)
-        for key in TRAINING_KEYS:
-            value = row.get(key)
-            if value is not None and np.isfinite(value):
-                rec.log(f"{prefix}/{key}", rr.Scalars(float(value)))
-                logged.add(key)
-    rec.reset_time()
+    for key in TRAINING_KEYS:
+        rows = [(int(row["episode"]), float(row[key])) for row in metrics
+                if row.get(key) is not None and np.isfinite(row[key])]  # fmt: skip
+        if rows:
+            iterations, values = zip(*rows, strict=True)
+            rec.send_columns(f"{prefix}/{key}", indexes=[rr.TimeColumn(ITERATION, sequence=iterations)],
+                             columns=rr.Scalars.columns(scalars=np.array(values)))  # fmt: skip
+            logged.add(key)
     return logged
 
 
@@ -347,7 +399,7 @@ def log_reward_map(
     for a in range(N_ACTIONS):
         rec.log(f"{path}/{ACTION_NAMES[a]}", rr.Image(colourise(values[0, a], low, high)), static=True)
     rec.log(
-        f"{path}/grid", rr.Image(grid_figure(grid, values, f"r_theta(s, a) {arena}".strip())), static=True
+        f"{path}/grid", png_image(grid_figure(grid, values, f"r_theta(s, a) {arena}".strip())), static=True
     )
     rec.log(
         f"{path}/values",
@@ -371,15 +423,78 @@ def log_reward_map(
     return values
 
 
+def episode_legend(
+    outcomes: Mapping[str, int],
+    sensing_range: float = 5.0,
+    danger7_clearance: float = 1.0,
+    moving: bool = False,
+    reward_of: str | None = None,
+) -> list[list[LegendSection]]:
+    """Every colour an episode group's tab draws, in legend columns (:func:`styles.legend_image`):
+    the paths by outcome with their counts (``outcomes``: outcome -> episodes) and, with a learned
+    reward (``reward_of``: whose), the r_theta scale along them; the arena and the robot; the rays'
+    danger levels with the clearances they stand for; and the plots' series colours."""
+    counts = tuple(Swatch("line", (_PATH[o],), f"{OUTCOME_WORDS[o]}: {outcomes.get(o, 0)}") for o in _PATH)
+    paths = [LegendSection("path, by outcome", counts)]
+    if reward_of is not None:
+        paths.append(
+            LegendSection(f"path, by r_theta ({reward_of})", (Swatch("scale", _SCALE, "low .. high"),))
+        )
+    arena = [Swatch("dot", (_START,), "start"), Swatch("dot", (_TARGET,), "target"),
+             Swatch("box", (_OBSTACLE,), "obstacle"), Swatch("box", (_WALL,), "wall, border")]  # fmt: skip
+    if moving:
+        arena.append(Swatch("box", (_MOVING,), "moving obstacle"))
+    robot = (Swatch("box", (_ROBOT,), "body"), Swatch("dot", (_MARKER_RGB,), "centre, heading"))
+    width = (sensing_range - danger7_clearance) / 6.0
+    bands = [f"{k}: {danger7_clearance + (6 - k) * width:.1f}-{danger7_clearance + (7 - k) * width:.1f} m"
+             for k in range(1, 7)]  # fmt: skip
+    levels = [f"0: nothing in {sensing_range:g} m", *bands, f"7: under {danger7_clearance:g} m"]
+    rays = LegendSection("rays, by danger D", tuple(
+        Swatch("line", (tuple(int(v) for v in c),), text)
+        for c, text in zip(DANGER_COLOURS, levels, strict=True)))  # fmt: skip
+    names: dict[tuple[int, int, int], list[str]] = {}
+    for group in FEATURE_GROUPS:
+        for name, colour in zip(feature_names(group), group.colours, strict=True):
+            names.setdefault(colour, []).append(name)
+    lines = [Swatch("line", (c,), ", ".join(n)) for c, n in names.items()]
+    if reward_of is not None:
+        lines.append(Swatch("line", (REWARD_COLOUR,), "r_theta"))
+    plots = LegendSection("plot lines", tuple(lines))
+    return [paths, [LegendSection("arena", tuple(arena)), LegendSection("robot", robot)], [rays], [plots]]
+
+
+class _GroupFacts:
+    """What an episode group's legend needs to know: outcomes, moving obstacles, r_theta, sensing."""
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        sensing = trajectory.task["sensing"]
+        self.sensing = (float(sensing["range"]), float(sensing["danger7_clearance"]))
+        self.outcomes: dict[str, int] = {}
+        self.moving = False
+        self.reward = False
+
+
+def _default_group(path: str) -> Group:
+    """How a group the caller did not describe is named: ``demos`` as demonstrations, ``eval/x``
+    as test episodes of ``x``."""
+    if path == "demos":
+        return Group(path, "demonstrations", "demonstrations")
+    if path.startswith("eval/"):
+        return Group(path, path.removeprefix("eval/"), "test episodes")
+    return Group(path, path)
+
+
 class Recording(AtomicFile):
     """A ``.rrd`` file written atomically: data goes to a temporary file next to ``path`` and
-    :meth:`close` moves it to ``path`` (after sending the default blueprint); :meth:`abort`, or
-    an exception inside a ``with`` block, deletes it. ``rec`` is the open
-    :class:`rerun.RecordingStream`."""
+    :meth:`close` moves it to ``path`` (after the legends, the training figure and the default
+    blueprint); :meth:`abort`, or an exception inside a ``with`` block, deletes it. ``rec`` is the
+    open :class:`rerun.RecordingStream`. ``method`` names whose training and learned reward the
+    recording holds (tabs and plot titles say it)."""
 
-    def __init__(self, path: str | os.PathLike, focus: str | None = None) -> None:
+    def __init__(self, path: str | os.PathLike, focus: str | None = None, method: str = "NIRL") -> None:
         super().__init__(path)
         self.focus = focus  # the episode whose tabs the layout opens on (None: the first)
+        self.method = method
         try:
             self.rec = rr.RecordingStream("nirl-mj")
             self.rec.save(self.tmp)
@@ -387,28 +502,43 @@ class Recording(AtomicFile):
             super().discard()
             raise
         self.scenes: list[Scene] = []  # logged episodes, in order, as the layout places them
+        self.groups: dict[str, Group] = {}  # how the groups' tabs name them (:meth:`group`)
         self.logged_iterations: set[int] = set()  # ``episode`` values of logged metrics rows
         self.training_keys: set[str] = set()  # training scalars logged (and styled) so far
+        self.metrics: list[dict] = []  # the logged metrics rows' training scalars, for the figure
         self.has_reward_map = False
+        self._facts: dict[str, _GroupFacts] = {}
 
     @property
     def episodes(self) -> list[str]:
         """Entity paths of the logged episodes, in order."""
         return [scene.path for scene in self.scenes]
 
+    def group(self, path: str, title: str, noun: str = "episodes", total: int | None = None) -> None:
+        """Names the episode group ``path`` (``demos``, ``eval/nirl``): its tab ``title``, what its
+        episodes are (``noun``) and how many there are in all (``total``; the recording holds the
+        first ones), so that the tab says ``first 10 of 100 test episodes``."""
+        self.groups[path] = Group(path, title, noun, total)
+
     def episode(self, path: str, trajectory: Trajectory, reward: RewardModel | None = None) -> None:
         """Logs one episode (:func:`log_episode`) under ``path``."""
         layout = log_episode(self.rec, path, trajectory, reward)
-        self.scenes.append(Scene(path, layout.size, reward is not None and len(trajectory) > 0))
+        drawn = reward is not None and len(trajectory) > 0
+        self.scenes.append(Scene(path, layout.size, drawn, trajectory.outcome))
+        facts = self._facts.setdefault(path.rsplit("/", 1)[0], _GroupFacts(trajectory))
+        facts.outcomes[trajectory.outcome] = facts.outcomes.get(trajectory.outcome, 0) + 1
+        facts.moving |= bool(layout.moving)
+        facts.reward |= drawn
 
     def training(self, metrics: Sequence[dict]) -> None:
         """Logs metrics rows (:func:`log_training`), and each series' style the first time it
-        appears; cheap enough to call every iteration."""
+        appears; cheap enough to call every iteration (the figure is drawn once, at :meth:`close`)."""
         new = log_training(self.rec, metrics) - self.training_keys
         if new:
             log_training_styles(self.rec, new)
             self.training_keys |= new
         self.logged_iterations.update(int(row["episode"]) for row in metrics)
+        self.metrics += [{k: row.get(k) for k in ("episode", *TRAINING_KEYS)} for row in metrics]
 
     def reward_map(
         self, task: str | TaskSpec, arena_seed: int, reward: RewardModel, resolution: float = 2.0
@@ -420,15 +550,28 @@ class Recording(AtomicFile):
         log_reward_map(self.rec, grid, reward, f"arena seed {arena_seed}")
         self.has_reward_map = True
 
+    def _log_legends(self) -> None:
+        """Each group's colour legend (``legend/<group>``), and the training figure."""
+        for group, facts in self._facts.items():
+            columns = episode_legend(facts.outcomes, *facts.sensing, facts.moving,
+                                     self.method if facts.reward else None)  # fmt: skip
+            self.rec.log(legend_entity(group), png_image(legend_image(columns)), static=True)
+        if self.metrics:
+            rows = sorted(self.metrics, key=lambda r: int(r["episode"]))
+            image = training_figure(rows, f"{self.method} training: {len(rows)} iterations")
+            self.rec.log(TRAINING_FIGURE, png_image(image), static=True)
+
     def commit(self) -> Path:
         """Places each episode in its group's view (a static transform of its entity: a view of the
-        episode itself stays in the arena's frame), sends the blueprint, flushes and moves the file
-        into place; returns its path."""
+        episode itself stays in the arena's frame), logs the legends and the training figure, sends
+        the blueprint, flushes and moves the file into place; returns its path."""
         try:
             for path, (x, y) in tile_offsets(self.scenes).items():
                 self.rec.log(path, rr.Transform3D(translation=(x, y, 0.0)), static=True)
-            keys = sorted(self.training_keys)
-            blueprint = default_blueprint(self.scenes, keys, self.has_reward_map, self.focus)
+            self._log_legends()
+            groups = {g: self.groups.get(g) or _default_group(g) for g in self._facts}
+            blueprint = default_blueprint(self.scenes, bool(self.metrics), self.has_reward_map, self.focus,
+                                          groups, self.method)  # fmt: skip
             self.rec.send_blueprint(blueprint, make_active=True)
             self.rec.flush()
         except BaseException:
@@ -462,6 +605,7 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
         recording.training([r for r in rows if int(r["episode"]) not in recording.logged_iterations])
         reward = RewardModel.from_dict(run.read_reward(), str(run.file(REWARD_FILE)))
         trajectories = load_dataset(demos)
+        recording.group("demos", "demonstrations", "demonstrations", len(trajectories))
         for i, trajectory in enumerate(trajectories):
             recording.episode(f"demos/{i:03d}", trajectory, reward)
         recording.reward_map(
@@ -497,8 +641,11 @@ def record_evaluation(
     map_arena: tuple[str | TaskSpec, int] | None = None,
 ) -> Path:
     """Writes a ``.rrd`` with every evaluation episode (``eval/<slug(name)>/<i>``), r_theta along
-    each when ``reward`` is given, and the reward map of ``map_arena`` (task, arena seed)."""
-    return record_run(path, (), (), {name: trajectories}, len(trajectories), reward, map_arena)
+    each when ``reward`` (``name``'s learned reward) is given, and the reward map of ``map_arena``
+    (task, arena seed)."""
+    return record_run(
+        path, (), (), {name: trajectories}, len(trajectories), reward, map_arena, reward_of=name
+    )
 
 
 def record_run(
@@ -510,21 +657,27 @@ def record_run(
     reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
     focus: str | None = None,
+    reward_of: str | None = None,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
-    scalars, up to ``max_paths`` evaluation episodes of each policy (``eval/<policy slug>/<i>``),
-    r_theta along every path when ``reward`` is given, and with
-    it the reward map in ``map_arena`` (task, arena seed) if given; the layout opens on the
-    episode ``focus`` (an entity path; None: the first)."""
-    model = reward
-    with Recording(path, focus) as recording:
+    scalars, the first ``max_paths`` test episodes of each policy (``eval/<policy slug>/<i>``; the
+    tab says how many of how many) and, when ``reward`` is given, r_theta along the demonstrations
+    and the test episodes of the policy whose reward it is (``reward_of``; default: the first of
+    ``evaluations``; the other policies' tabs show only their own data) and the reward map in
+    ``map_arena`` (task, arena seed) if given; the layout opens on the episode ``focus`` (an
+    entity path; None: the first)."""
+    owner = reward_of if reward_of is not None else next(iter(evaluations), "NIRL")
+    with Recording(path, focus, owner) as recording:
+        recording.group("demos", "demonstrations", "demonstrations", len(demos))
         for i, trajectory in enumerate(demos):
-            recording.episode(f"demos/{i:03d}", trajectory, model)
+            recording.episode(f"demos/{i:03d}", trajectory, reward)
         if metrics:
             recording.training(metrics)
         for name, trajectories in evaluations.items():
+            group = f"eval/{slug(name)}"
+            recording.group(group, name, "test episodes", len(trajectories))
             for i, trajectory in enumerate(trajectories[:max_paths]):
-                recording.episode(f"eval/{slug(name)}/{i:03d}", trajectory, model)
-        if model is not None and map_arena is not None:
-            recording.reward_map(map_arena[0], map_arena[1], model)
+                recording.episode(f"{group}/{i:03d}", trajectory, reward if name == owner else None)
+        if reward is not None and map_arena is not None:
+            recording.reward_map(map_arena[0], map_arena[1], reward)
     return Path(path)
