@@ -249,3 +249,16 @@ def test_training_series_are_styled_once_in_distinct_colours(run_rrd):
         assert len(set(colours)) == len(colours), plot.title
     for group in FEATURE_GROUPS:
         assert len(set(group.colours)) == len(group.colours) == group.index.stop - group.index.start
+
+
+def test_the_training_figure_marks_the_selected_iteration():
+    """The recording's training figure draws the reported policy's iteration as a dashed grey line
+    on every plot (the report's figures do the same), and nothing of that grey without it."""
+    from nirl_mj.inspect.styles import TRAINING_KEYS, training_figure
+
+    rows = [{"episode": i, **{k: float(np.sin(i + j)) for j, k in enumerate(TRAINING_KEYS)}}
+            for i in range(20)]  # fmt: skip
+    plain, marked = training_figure(rows, "t"), training_figure(rows, "t", selected=7)
+    grey = [int(np.all(image == 89, axis=-1).sum()) for image in (plain, marked)]
+    plots = sum(1 for plot in TRAINING_PLOTS if any(k in TRAINING_KEYS for k in plot.series))
+    assert grey[1] - grey[0] > 40 * plots  # a dashed line of at least 40 pixels on every plot

@@ -217,6 +217,7 @@ def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: st
         map_arena=(specs.from_dict(first_test.task, "test episode task"), first_test.arena_seed),
         focus=focus,
         reward_of=ROWS["NIRL"],
+        selected=nirl.read_record().get("selected_iteration"),
     )
 
 

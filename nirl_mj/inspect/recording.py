@@ -506,6 +506,7 @@ class Recording(AtomicFile):
         self.logged_iterations: set[int] = set()  # ``episode`` values of logged metrics rows
         self.training_keys: set[str] = set()  # training scalars logged (and styled) so far
         self.metrics: list[dict] = []  # the logged metrics rows' training scalars, for the figure
+        self.selected_iteration: int | None = None  # the reported policy's iteration, marked on the figure
         self.has_reward_map = False
         self._facts: dict[str, _GroupFacts] = {}
 
@@ -558,7 +559,8 @@ class Recording(AtomicFile):
             self.rec.log(legend_entity(group), png_image(legend_image(columns)), static=True)
         if self.metrics:
             rows = sorted(self.metrics, key=lambda r: int(r["episode"]))
-            image = training_figure(rows, f"{self.method} training: {len(rows)} iterations")
+            image = training_figure(rows, f"{self.method} training: {len(rows)} iterations",
+                                    self.selected_iteration)  # fmt: skip
             self.rec.log(TRAINING_FIGURE, png_image(image), static=True)
 
     def commit(self) -> Path:
@@ -602,6 +604,7 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     try:
         record = run.read_record()
         rows = run.read_metrics()
+        recording.selected_iteration = record.get("selected_iteration")
         recording.training([r for r in rows if int(r["episode"]) not in recording.logged_iterations])
         reward = RewardModel.from_dict(run.read_reward(), str(run.file(REWARD_FILE)))
         trajectories = load_dataset(demos)
@@ -658,6 +661,7 @@ def record_run(
     map_arena: tuple[str | TaskSpec, int] | None = None,
     focus: str | None = None,
     reward_of: str | None = None,
+    selected: int | None = None,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
     scalars, the first ``max_paths`` test episodes of each policy (``eval/<policy slug>/<i>``; the
@@ -665,9 +669,10 @@ def record_run(
     and the test episodes of the policy whose reward it is (``reward_of``; default: the first of
     ``evaluations``; the other policies' tabs show only their own data) and the reward map in
     ``map_arena`` (task, arena seed) if given; the layout opens on the episode ``focus`` (an
-    entity path; None: the first)."""
+    entity path; None: the first); the training figure marks the ``selected`` iteration."""
     owner = reward_of if reward_of is not None else next(iter(evaluations), "NIRL")
     with Recording(path, focus, owner) as recording:
+        recording.selected_iteration = selected
         recording.group("demos", "demonstrations", "demonstrations", len(demos))
         for i, trajectory in enumerate(demos):
             recording.episode(f"demos/{i:03d}", trajectory, reward)

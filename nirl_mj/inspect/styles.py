@@ -189,10 +189,12 @@ def _draw_swatch(ax, swatch: Swatch, x: float, y: float, rectangle, circle) -> N
         raise ValueError(f"unknown swatch kind {swatch.kind!r}")
 
 
-def training_figure(rows: Sequence[dict], title: str = "training") -> np.ndarray:
+def training_figure(rows: Sequence[dict], title: str = "training", selected: int | None = None) -> np.ndarray:
     """The training curves of metrics ``rows`` (``episode`` and :data:`TRAINING_KEYS`) as one image
     (H, W, 3) uint8: a plot per scale (:data:`TRAINING_PLOTS`, those with data), four to a row, each
-    with its title and, above the curves, a legend whose swatches have the curves' exact colours."""
+    with its title and, above the curves, a legend whose swatches have the curves' exact colours;
+    the ``selected`` iteration (the policy the run reports) as a dashed grey line on every plot,
+    named in the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -238,6 +240,10 @@ def training_figure(rows: Sequence[dict], title: str = "training") -> np.ndarray
         ax.set_xlabel("iteration", fontsize=9)
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.3)
+        if selected is not None and selected >= 0:
+            ax.axvline(selected, color="0.35", linestyle="--", linewidth=1.0)
+    if selected is not None and selected >= 0:
+        title += f" (dashed line: the selected policy, iteration {selected})"
     fig.suptitle(title, fontsize=11)
     fig.canvas.draw()
     rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
