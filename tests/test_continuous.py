@@ -270,3 +270,21 @@ def test_discrete_datasets_keep_their_format_and_kinds_do_not_mix(demos, tmp_pat
     assert load_dataset(path)[0].action_kind == "discrete"
     with pytest.raises(ValueError, match="mix discrete and continuous actions"):
         save_dataset(tmp_path / "mixed.npz", [discrete, load_dataset(demos)[0]])
+
+
+def test_the_main_job_and_experiments_refuse_a_continuous_task_before_any_work(tmp_path, capsys):
+    """`nirl-mj run` and `nirl-mj compare` on a task with continuous actions refuse the learners that
+    choose among six actions in one line, before a demonstration is recorded; the references and PPO
+    are accepted on it."""
+    from nirl_mj.experiments.definition import ExperimentError, load_experiment
+
+    err = _one_line_error(capsys, ["run", "--out", str(tmp_path / "main"), *SET])
+    assert "has continuous actions" in err and "NIRL" in err and "accepted on it: rule" in err
+    assert not (tmp_path / "main").exists()
+    experiment = tmp_path / "e.toml"
+    body = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = {}\n[set.control]\nactions = "continuous"\n'
+    experiment.write_text(body.format('["BC", "rule"]'))
+    with pytest.raises(ExperimentError, match=r"BC choose among the six discrete actions"):
+        load_experiment(experiment)
+    experiment.write_text(body.format('["rule", "forward", "expert"]'))
+    assert [m.name for m in load_experiment(experiment).methods] == ["rule", "forward", "expert"]

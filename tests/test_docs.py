@@ -32,6 +32,9 @@ def test_the_checks_catch_a_typed_table_and_a_stale_block(tmp_path):
     typed = tmp_path / "typed.md"
     typed.write_text("Text.\n\n| method | success |\n|---|---|\n| NIRL | 97.4 % |\n| BC | 96 |\n\nMore.\n")
     assert RENDER["ungenerated_tables"](typed) == [3]
+    bold = tmp_path / "bold.md"
+    bold.write_text("| method | success |\n|---|---|\n| NIRL | **97.4 %** |\n| BC | ~96 % |\n")
+    assert RENDER["ungenerated_tables"](bold) == [1]
     words = tmp_path / "words.md"
     words.write_text("| key | meaning |\n|---|---|\n| `name` | informational |\n")
     assert RENDER["ungenerated_tables"](words) == []

@@ -154,7 +154,7 @@ DEPARTURES: tuple[Departure, ...] = (
         (
             Unstored(
                 "not ablated in a stored experiment (one run with every end worth 0, 2026-11-26: "
-                'docs/ALGORITHM.md, "The information budget"); the outcome added back is '
+                'docs/notebook/algorithm.md, "One information budget"); the outcome added back is '
                 "`tasks/ablations/information_budget.toml`, not yet run",
                 "`nirl-mj compare --task tasks/ablations/information_budget.toml`",
             ),
@@ -206,8 +206,8 @@ DEPARTURES: tuple[Departure, ...] = (
         "**Experience replay** `replay_episodes = 10`, `net_epochs = 4`, `batch_size = 64`: minibatch "
         "epochs over the last 10 iterations' pairs; paper preset: this iteration's pairs, 20 full-batch "
         "steps",
-        "one iteration's pairs are too few to learn from (the 2-D prototype, "
-        "../shared/docs/algorithms-notes.md)",
+        "one iteration's pairs are too few to learn from (measured on the project's 2-D prototype "
+        "before this code)",
         (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("replay_episodes=0")),),
     ),
     Departure(

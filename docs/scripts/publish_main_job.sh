@@ -8,9 +8,10 @@ cd "$(dirname "$0")/../.."
 run=${1:-runs/main}
 [ -f "$run/report.md" ] || { echo "$run: no report.md; run nirl-mj run first" >&2; exit 2; }
 out=docs/results/main_job
-mkdir -p "$out"
-cp "$run/results.json" "$run/report.md" "$run/experiment.json" "$out/"
-cp "$run"/*.png "$out/"
-mkdir -p "$out/tests"
-cp "$run"/tests/*.npz "$out/tests/"
-echo "$out: results.json, report.md, experiment.json and the report's figures"
+stage=docs/results/.main_job.staging
+rm -rf "$stage" && mkdir -p "$stage/tests"
+cp "$run/results.json" "$run/report.md" "$run/experiment.json" "$run"/*.png "$stage/"
+cp "$run"/tests/*.npz "$stage/tests/"
+# the published folder is replaced whole (no stale file of an older job stays), by renames
+rm -rf "$out.old" && { [ ! -d "$out" ] || mv "$out" "$out.old"; } && mv "$stage" "$out" && rm -rf "$out.old"
+echo "$out: results.json, report.md, experiment.json, the report's figures and tests/"

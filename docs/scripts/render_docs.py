@@ -146,8 +146,8 @@ NUMBER = re.compile(r"[-+]?\d+(\.\d+)?\b")
 
 def states_results(rows: list[str]) -> bool:
     """Whether a Markdown table (its lines) states measured figures: at least a third of its body's
-    cells, the first column left out, begin with a number."""
-    cells = [c.strip() for row in rows[2:] for c in row.strip().strip("|").split("|")[1:]]
+    cells, the first column left out, begin with a number (bold or "~" before it included)."""
+    cells = [c.strip().lstrip("*~") for row in rows[2:] for c in row.strip().strip("|").split("|")[1:]]
     return bool(cells) and 3 * sum(bool(NUMBER.match(c)) for c in cells) >= len(cells)
 
 

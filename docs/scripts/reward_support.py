@@ -8,8 +8,8 @@ Prints, per run: the test success of the run's cell, the number of non-zero comp
 demonstrated pairs whose action the reward alone ranks first (argmax_a theta^T f(s, a); always
 "forward" scores the expert's share of forward actions, 91.5 % for Table I's demonstrations).
 Written to show that RE's Hoeffding L1 widths leave two components of theta in each of Table I's
-runs whose training directory is kept (runs 16-24 at 41e1690; docs/ALGORITHM.md, "Why RE
-per-state is unsteady").
+runs whose training directory is kept (runs 16-24 at 41e1690; docs/notebook/algorithm.md,
+"Why RE per-state is unsteady").
 """
 
 from __future__ import annotations

@@ -45,22 +45,10 @@ def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> tqdm:
     return tqdm(total=total, unit=unit, file=sys.stderr, disable=getattr(args, "quiet", False), **kw)
 
 
-def _summary_text(summary: dict) -> str:
-    """``summary_lines``, with the mean shares of continuous actions where a histogram would be."""
-    text = summary_lines(summary)
-    if summary.get("action_kind") != "continuous":
-        return text
-    mean = summary["mean_action"]
-    return (
-        text.rsplit("\n", 1)[0] + f"\ncontinuous actions ({summary['pairs']} pairs): mean shares forward "
-        f"{mean['forward']:+.2f}, yaw rate {mean['yaw_rate']:+.2f} (size {mean['abs_yaw_rate']:.2f})"
-    )
-
-
 def _summary(trajectories: list, summary: dict) -> dict | None:
     """Prints a dataset's summary and, with two or more episodes of discrete actions, its
     predictability from phi(s) (a classifier of the six actions)."""
-    print(_summary_text(summary))
+    print(summary_lines(summary))
     discrete = summary.get("action_kind", "discrete") == "discrete"
     pred = predictability(trajectories) if len(trajectories) >= 2 and discrete else None
     if pred:
@@ -142,7 +130,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             bar.update()
             bar.write(f"episode {i:3d}  {episode_line(trajectories[-1])}", file=sys.stdout)
     summary = summarise(trajectories)
-    print(_summary_text(summary))
+    print(summary_lines(summary))
     if args.json:
         print(json.dumps({**summary, "task": spec.name, "policy": args.policy, "seed": args.seed}))
     return 0

@@ -127,10 +127,8 @@ class Trajectory:
                     f"Trajectory.{name}: expected shape {shape} for T = {t} actions (T + 1 states), got {got}"
                 )
         if continuous:
-            if not np.all(np.isfinite(self.actions)):
-                raise ValueError("Trajectory.actions: continuous actions must be finite (no NaN or inf)")
-            if t and np.abs(self.actions).max() > 1.0:
-                raise ValueError("Trajectory.actions: continuous actions are shares in [-1, 1]")
+            if not shares_in_range(self.actions):
+                raise ValueError("Trajectory.actions: continuous actions are finite shares in [-1, 1]")
         elif t and (self.actions.min() < 0 or self.actions.max() >= N_ACTIONS):
             raise ValueError(f"Trajectory.actions: values must be in 0..{N_ACTIONS - 1}")
         seed = self.arena_seed
@@ -195,6 +193,11 @@ def action_kind(trajectories: Sequence[Trajectory]) -> str:
     if len(kinds) > 1:
         raise ValueError("the trajectories mix discrete and continuous actions; a dataset holds one kind")
     return kinds.pop() if kinds else "discrete"
+
+
+def shares_in_range(actions: np.ndarray) -> bool:
+    """Whether continuous ``actions`` (..., 2) are finite shares in [-1, 1] (the recorded form)."""
+    return bool(np.all(np.isfinite(actions)) and (actions.size == 0 or np.abs(actions).max() <= 1.0))
 
 
 def require_discrete(trajectories: Sequence[Trajectory], where: str = "the demonstrations") -> None:
@@ -278,7 +281,7 @@ class TrajectoryRecorder:
             raise RuntimeError("TrajectoryRecorder.step before start: call start(reset observation) first")
         if self._continuous:
             a = np.array(action, dtype=np.float32)
-            if a.shape != (CONTINUOUS_DIM,) or not np.all(np.isfinite(a)) or np.abs(a).max() > 1.0:
+            if a.shape != (CONTINUOUS_DIM,) or not shares_in_range(a):
                 raise ValueError(f"a continuous action is two finite shares in [-1, 1], got {action!r}")
         else:
             a = int(action)

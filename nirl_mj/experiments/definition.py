@@ -28,6 +28,7 @@ import dataclasses
 import json
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -101,6 +102,13 @@ class MethodSpec:
     def trains(self) -> bool:
         """Whether this method has training runs on disk (``OUT/runs/NAME/SEED``)."""
         return self.kind == "irl"
+
+    @property
+    def drives_continuous(self) -> bool:
+        """Whether this method can act on a task with continuous actions: the references and the
+        demonstrator (each decision driven as its continuous twin) and PPO on the reward. The
+        learners from demonstrations choose among the six discrete actions."""
+        return self.kind in ("forward", "rule", "expert") or (self.kind == "rl" and self.algo == "ppo")
 
     def learner_config(self, shared: dict) -> LearnerConfig:
         """The learner's configuration: the variant's, then the experiment's ``[config]``, then ours."""
@@ -386,6 +394,7 @@ def from_dict(
         test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
         axes=_axes(data, test_task, base, where) if kind == "suite" else (),
     )  # fmt: skip
+    check_actions(experiment.methods, (experiment.task, experiment.test_task), source)
     if kind == "sweep":
         rl = [m.name for m in methods if m.kind == "rl"]
         if rl:
@@ -458,6 +467,18 @@ def _axis_value(name: str, value: Any, where: str) -> Any:
         return _number(value, where, 0.0)
     accepted = demonstrator_names() if name == "demonstrator" else FAMILIES
     return _choice(value, accepted, where)
+
+
+def check_actions(methods: Sequence[MethodSpec], tasks: Sequence[specs.TaskSpec], source: str) -> None:
+    """Refuses, before anything runs, methods that cannot act on a task with continuous actions."""
+    continuous = [t.name for t in tasks if t.control.actions == "continuous"]
+    discrete = [m.name for m in methods if not m.drives_continuous]
+    if continuous and discrete:
+        raise ExperimentError(
+            f"{source}: task {continuous[0]} has continuous actions, and {', '.join(discrete)} choose among "
+            'the six discrete actions: accepted on it: rule, forward, expert and kind = "rl" with '
+            'algo = "ppo"; or set [control] actions = "discrete"'
+        )
 
 
 def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:

@@ -39,7 +39,7 @@ from nirl_mj.data.lock import writes
 from nirl_mj.data.outcomes import sct
 from nirl_mj.data.rundir import RunDir
 from nirl_mj.data.trajectory import Trajectory, path_length
-from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec
+from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec, check_actions
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import EXPERIMENT_FILE, Execution, RunJob, policy_of, prepare, run_seed
@@ -93,6 +93,7 @@ def main_experiment(
         MethodSpec("rule", "rule"),
         MethodSpec("BC", "bc"),
     )
+    check_actions(methods, (task,), "nirl-mj run")
     return Experiment(
         kind="main", name="main", source="nirl-mj run", description=f"the main job on {task.name}",
         task=task, test_task=task, seed=seed, runs=1, tests=tests, methods=methods, expert=expert,
@@ -443,7 +444,7 @@ def write_report(
     validation = ", and the greedy policy's success on validation arenas" if validated else ""
     drawn = [name for name in PATH_POLICIES if paths.get(name)]
     paths_plot(out / "paths.png", {name: paths[name] for name in drawn}, PATH_ARENAS)
-    shown = min(PATH_ARENAS, *(len(paths[name]) for name in drawn))
+    shown = min([PATH_ARENAS, *(len(paths[name]) for name in drawn)])
     rows = report_rows(results, paths)
     config = record["config"]
     matching = config.get("matching", "occupancy")

@@ -408,9 +408,9 @@ def _twist_scale(model, record: dict) -> np.ndarray | None:
         return None
     if not np.allclose(np.asarray(model.action_space.high, dtype=np.float64), 1.0):
         return None
-    from nirl_mj.sim.task import continuous_action_spec
+    from nirl_mj.sim.task import action_scale
 
-    return np.asarray(continuous_action_spec(specs.from_dict(record["task"], "run record")).maximum)
+    return action_scale(specs.from_dict(record["task"], "run record"))
 
 
 def load_rl_policy(

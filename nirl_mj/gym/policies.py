@@ -29,7 +29,7 @@ import numpy as np
 
 from nirl_mj.experts import EXPERT_KINDS, make_expert
 from nirl_mj.experts.policies import POLICIES
-from nirl_mj.sim.drive import ACTIONS, action_share
+from nirl_mj.sim.drive import action_share
 
 _NEEDS_ENV = ("planner", "noisy")
 
@@ -94,9 +94,8 @@ class ExpertPolicy:
 def reference_policy(name: str, env=None):
     """A reference policy of :data:`nirl_mj.experts.policies.POLICIES` (``rule``, ``forward``) as
     ``policy(obs) -> action``; ``obs`` is the Dict observation or phi(s) (16,) itself. Given the
-    ``env`` it drives, of a task with continuous actions, it acts with :func:`twist_of` its
-    discrete choice, normalised as the environment's action space is
-    (:func:`nirl_mj.sim.drive.action_share`)."""
+    ``env`` it drives, of a task with continuous actions, it acts with its discrete choice's continuous
+    twin, normalised as the environment's action space is (:func:`nirl_mj.sim.drive.action_share`)."""
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
@@ -108,16 +107,7 @@ def reference_policy(name: str, env=None):
         action = int(on_phi(np.asarray(phi)))
         if not continuous:
             return action
-        return action_share(action)  # = twist_of(action, task) / env.unwrapped.action_scale, float32
+        return action_share(action)  # float32 shares of env.unwrapped.action_scale
 
     policy.__name__ = name
     return policy
-
-
-def twist_of(action: int, task) -> np.ndarray:
-    """The continuous action closest to discrete ``action`` on ``task`` (a ``TaskSpec``): float32
-    (forward speed m/s, yaw rate rad/s), the discrete action's speed and its turn spread evenly
-    over the decision (the discrete action ramps its yaw rate; both end at the same heading)."""
-    move = ACTIONS[action]
-    return np.array([move.direction * task.control.speed, move.turn / task.control.decision_period],
-                    dtype=np.float32)  # fmt: skip

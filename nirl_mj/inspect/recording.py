@@ -314,7 +314,7 @@ def log_trajectory(
         rec.send_columns(
             f"{path}/action", indexes=decisions, columns=rr.TextLog.columns(text=_action_texts(trajectory))
         )
-        if reward is not None:
+        if reward is not None and trajectory.action_kind == "discrete":  # r_theta(s, a) is of the six actions
             phi, actions = trajectory.pairs()
             r = np.asarray(reward.reward(phi, actions), dtype=np.float64)
             log_series_style(rec, f"{path}/reward", ["r_theta"], (REWARD_COLOUR,))

@@ -11,14 +11,22 @@ def episode_line(t: Trajectory) -> str:
 
 
 def summary_lines(summary: dict) -> str:
-    """Outcome rates, episode lengths and action shares of a ``summarise`` result."""
-    actions = "  ".join(f"{name} {frac:.1%}" for name, frac in summary["action_fractions"].items())
+    """Outcome rates, episode lengths and action shares of a ``summarise`` result (continuous
+    actions: their mean shares of the forward speed and of the yaw rate)."""
+    if summary.get("action_kind") == "continuous":
+        mean = summary["mean_action"]
+        actions = (
+            f"continuous actions ({summary['pairs']} pairs): mean shares forward {mean['forward']:+.2f}, "
+            f"yaw rate {mean['yaw_rate']:+.2f} (size {mean['abs_yaw_rate']:.2f})"
+        )
+    else:
+        shares = "  ".join(f"{name} {frac:.1%}" for name, frac in summary["action_fractions"].items())
+        actions = f"actions ({summary['pairs']} pairs): {shares}"
     return (
         f"episodes {summary['episodes']}  success {summary['success_rate']:.0%}  collision "
         f"{summary['collision_rate']:.0%}  timeout {summary['timeout_rate']:.0%}  diverged "
         f"{summary['physics_error_rate']:.0%}  steps mean {summary['mean_steps']:.1f} "
-        f"(min {summary['min_steps']}, max {summary['max_steps']})\n"
-        f"actions ({summary['pairs']} pairs): {actions}"
+        f"(min {summary['min_steps']}, max {summary['max_steps']})\n{actions}"
     )
 
 

@@ -14,8 +14,9 @@ step, chosen by ``LoopConfig.method`` and configured by its own config
 A reward step has ``update(theta, trajectories, iteration, greedy_on_demos,
 context=None) -> (theta, convergence)``, ``state()`` and ``load_state(state)``
 (arrays only, for checkpoints). ``context`` (:class:`RolloutContext`) describes
-the policy that produced ``trajectories``; only steps that weigh the rollouts by
-their probabilities (RE-IRL's importance sampling) read it.
+the policy that produced ``trajectories`` (its eta and a snapshot of its network):
+NIRL's default margin (the learner's policies), AL's per-state reading and RE-IRL's
+importance sampling read it.
 """
 
 from __future__ import annotations
