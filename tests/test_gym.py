@@ -87,6 +87,19 @@ def test_the_budget_truncates_and_an_arrival_terminates_with_is_success():
     assert ends[-1][2]["outcome"] == "target" and ends[-1][2]["is_success"] is True
 
 
+def test_the_spec_says_the_task_s_own_step_budget_and_adds_no_time_limit():
+    """`env.spec.max_episode_steps` is the budget of the task as resolved (it follows `set=`), with no
+    TimeLimit wrapper of a registered value that `task=` could contradict; an environment made again
+    from that spec truncates at the same decision."""
+    env = gymnasium.make("nirl_mj/Navigate-v0")
+    assert env.spec.max_episode_steps == 340 == env.unwrapped.task_spec.step_budget
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.step_budget=2"])
+    assert env.spec.max_episode_steps == 2 and "TimeLimit" not in str(env)
+    again = gymnasium.make(env.spec)
+    again.reset(seed=0)
+    assert [again.step(0)[3] for _ in range(2)] == [False, True]
+
+
 def test_render_gives_frames_at_one_per_decision():
     quick = ["control.decision_period=0.25", "control.max_accel=10.0"]
     env = gymnasium.make(

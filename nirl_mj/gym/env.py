@@ -25,6 +25,7 @@ the dm_env environment underneath plus the Gymnasium conventions:
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Sequence
 from typing import Any
@@ -51,6 +52,19 @@ class NavigationEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 2.0}
+    _spec: gymnasium.envs.registration.EnvSpec | None = None
+
+    @property
+    def spec(self) -> gymnasium.envs.registration.EnvSpec | None:
+        """The spec ``gymnasium.make`` gave, its ``max_episode_steps`` the task's own step budget:
+        the registered ids set none (no ``TimeLimit``), since the budget follows ``task=`` and
+        ``set=``, and the task truncates there itself."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: gymnasium.envs.registration.EnvSpec | None) -> None:
+        budget = self.task_spec.step_budget if hasattr(self, "task_spec") else None
+        self._spec = None if value is None else dataclasses.replace(value, max_episode_steps=budget)
 
     def __init__(
         self,
