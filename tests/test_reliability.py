@@ -357,6 +357,33 @@ def test_a_dataset_with_a_duplicate_entry_or_a_lying_header_is_one_error_line(de
         assert len(err) == 1 and needle in err[0]
 
 
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        (lambda task: task["control"].update(speed=-1.0), "control.speed"),
+        (lambda task: task["arena"].update(colour="red"), "unknown key(s) colour"),
+        (lambda task: task.update(robot={"drive": "hovercraft"}), "robot.drive"),
+    ],
+)
+def test_a_dataset_whose_task_record_breaks_the_task_file_s_rules_is_one_error_line(
+    demos, tmp_path, capsys, change, needle
+):
+    """A dataset's task record is checked as a task file is (issue 34, defect 8): a negative speed,
+    an unknown key or a drive that does not exist is refused naming the file, never read as valid."""
+    import json
+
+    with np.load(demos) as stored:
+        arrays = {k: stored[k] for k in stored.files}
+    tasks = [json.loads(text) for text in arrays["tasks"].tolist()]
+    change(tasks[0])
+    arrays["tasks"] = np.array([json.dumps(task) for task in tasks])
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    assert main(["inspect", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0] and "task record" in err[0] and needle in err[0], err
+
+
 @pytest.mark.parametrize("line", ["[1]", "not json", '"x"'])
 def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, tmp_path, line):
     from nirl_mj.data.rundir import RunDir, RunError

@@ -465,6 +465,13 @@ def _check_outcomes(a: Mapping[str, np.ndarray]) -> None:
         raise _Invalid(f"unknown outcome(s) {unknown}; allowed {', '.join(OUTCOMES)}")
 
 
+TASK_RULES: list[Callable[[dict, str], object]] = []
+"""Checks of a task record beyond its shape, each ``rule(task, where)`` raising ``ValueError``:
+the task file's rules live in ``nirl_mj.sim.spec``, which registers them here when imported (the
+data layer cannot import the simulation's), so a record with a negative speed or an unknown key is
+refused as a task file with it would be."""
+
+
 def _check_tasks(a: Mapping[str, np.ndarray]) -> None:
     tasks, task_index = a["tasks"], a["task_index"]
     if np.any((task_index < 0) | (task_index >= tasks.shape[0])):
@@ -476,6 +483,11 @@ def _check_tasks(a: Mapping[str, np.ndarray]) -> None:
             raise _Invalid(f"tasks[{i}] is not valid JSON: {exc}") from None
         if not isinstance(task, dict):
             raise _Invalid(f"tasks[{i}] is not a JSON object (a TaskSpec.to_dict())")
+        for rule in TASK_RULES:
+            try:
+                rule(task, f"tasks[{i}]")
+            except ValueError as exc:
+                raise _Invalid(f"the task record {exc}") from None
         control = task.get("control")
         declared = control.get("actions", "discrete") if isinstance(control, dict) else "discrete"
         if declared != _kind(a) and declared in ACTION_KINDS:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.data import dataset
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.sim.drive import WHEEL_DISTANCE
 from nirl_mj.sim.floorplans import FAMILIES, slot_counts
@@ -440,3 +441,6 @@ def apply_overrides(spec: TaskSpec, assignments: list[str]) -> TaskSpec:
             raise SpecError(f"override {text!r}: expected SECTION.KEY=VALUE, e.g. control.speed=3")
         sections.setdefault(section, {})[field_name] = parsed
     return replace(spec, **sections) if sections else spec
+
+
+dataset.TASK_RULES.append(from_dict)  # a dataset's task records obey the task file's rules
