@@ -56,6 +56,12 @@ def digests(run: Path) -> dict[str, str]:
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(run.iterdir()) if p.is_file()}
 
 
+def tree_digests(folder: Path) -> dict[str, str]:
+    """Every file under ``folder`` (subfolders included) by its path, with its sha256."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}  # fmt: skip
+
+
 def copy_of(run: Path, tmp_path: Path) -> Path:
     import shutil
 
@@ -395,6 +401,21 @@ def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, 
         RunDir(run).read_metrics()
 
 
+def damaged_bytes(raw: bytes, data) -> bytes:
+    """``raw`` truncated, with a byte flipped, or replaced by JSON of another shape (drawn from
+    hypothesis's ``data``)."""
+    import json
+
+    raw = bytearray(raw)
+    how = data.draw(st.sampled_from(["truncate", "flip", "json"]))
+    if how == "truncate":
+        return bytes(raw[: data.draw(st.integers(0, len(raw) - 1))])
+    if how == "flip":
+        raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
+        return bytes(raw)
+    return json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()
+
+
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
@@ -403,7 +424,6 @@ def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
     """Every file of a finished run and the dataset, truncated, byte-flipped or replaced by another
     JSON shape: `eval` (the run) or `inspect` (the dataset) exits 0, or 2 with one error line and the
     directory unchanged."""
-    import json
     import shutil
 
     tmp = tmp_path_factory.mktemp("any")
@@ -414,17 +434,7 @@ def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
     name = data.draw(st.sampled_from([RUN_FILE, METRICS_FILE, CHECKPOINT_FILE, POLICY_FILE, "reward.json",
                                       "eval.json", "dataset"]))  # fmt: skip
     path = dataset if name == "dataset" else run / name
-    raw = bytearray(path.read_bytes())
-    how = data.draw(st.sampled_from(["truncate", "flip", "json"]))
-    if how == "truncate":
-        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
-    elif how == "flip":
-        raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
-    else:
-        raw = bytearray(
-            json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()
-        )
-    path.write_bytes(bytes(raw))
+    path.write_bytes(damaged_bytes(path.read_bytes(), data))
     capsys.readouterr()
     before = digests(run)
     argv = (
@@ -437,3 +447,46 @@ def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
     assert code in (0, 2) and "Traceback" not in err, err
     if code == 2:
         assert len(err.strip().splitlines()) == 1 and digests(run) == before
+
+
+@pytest.fixture(scope="module")
+def experiment_out(tmp_path_factory) -> tuple[Path, list[str]]:
+    """A finished tiny compare experiment (the rule, 2 runs of 1 test) and its command."""
+    tmp = tmp_path_factory.mktemp("experiment")
+    spec = tmp / "e.toml"
+    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule", "forward"]\n'
+                    '[set.robot]\ndrive = "planar"\n[set.control]\nstep_budget = 8\n'
+                    '[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
+    out = tmp / "out"
+    argv = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
+    assert main(argv) == 0
+    return out, argv
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_damage_to_an_experiment_s_files_is_refused_or_recomputed_never_a_traceback(
+    experiment_out, tmp_path_factory, capsys, data
+):
+    """A cell, experiment.json or results.json of a finished experiment, truncated, byte-flipped or
+    replaced by JSON of another shape: `compare --report` and `compare` exit 0 (a damaged cell is
+    left out of the report, then computed again) or 2 with one error line and the directory as it
+    was."""
+    import shutil
+
+    finished, argv = experiment_out
+    out = tmp_path_factory.mktemp("damaged") / "out"
+    shutil.copytree(finished, out)
+    argv = [str(out) if a == str(finished) else a for a in argv]
+    files = sorted(p.relative_to(out) for p in [*out.glob("cells/*.json"), out / "experiment.json",
+                                                 out / "results.json"])  # fmt: skip
+    path = out / data.draw(st.sampled_from(files))
+    path.write_bytes(damaged_bytes(path.read_bytes(), data))
+    for command in ([*argv, "--report"], argv):
+        capsys.readouterr()
+        before = tree_digests(out)
+        code = main(command)
+        err = capsys.readouterr().err
+        assert code in (0, 2) and "Traceback" not in err, err
+        if code == 2:
+            assert len(err.strip().splitlines()) == 1 and tree_digests(out) == before, err
