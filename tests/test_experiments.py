@@ -418,9 +418,10 @@ def test_killed_sweep_resumes_without_recomputing_finished_cells(serial_sweep, t
 
 
 def test_a_killed_experiment_leaves_no_worker_writing(tmp_path):
-    """A killed parent (SIGKILL: no clean-up runs) takes its local workers with it, so a restarted
-    command is the only writer of its directory: a worker notices within a second that its parent
-    has gone and ends (the 120 s below only bound a test that would otherwise hang)."""
+    """A killed parent (SIGKILL: no clean-up runs) takes its local workers and multiprocessing's
+    resource tracker with it, so a restarted command is the only writer of its directory: a worker
+    notices within a second that its parent has gone and ends (the 120 s below only bound a test
+    that would otherwise hang)."""
     pid_file = tmp_path / "worker.pid"
     script = (
         "import sys; sys.path.insert(0, {tests!r})\n"
@@ -434,6 +435,16 @@ def test_a_killed_experiment_leaves_no_worker_writing(tmp_path):
         assert time.monotonic() < deadline and parent.poll() is None, "the worker did not start"
         time.sleep(0.05)
     worker = int(pid_file.read_text())
+
+    def ppid(proc: Path) -> int | None:
+        try:
+            return int(proc.joinpath("stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            return None
+
+    # the worker and multiprocessing's resource tracker, every child the parent had
+    children = {int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit() and ppid(p) == parent.pid}
+    assert worker in children and len(children) >= 2, children  # the tracker too
     parent.send_signal(signal.SIGKILL)
     parent.wait()
 
@@ -445,10 +456,12 @@ def test_a_killed_experiment_leaves_no_worker_writing(tmp_path):
         # reaped by init once it exits; a zombie still answers signal 0
         return Path(f"/proc/{pid}/stat").is_file() and Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
 
-    while alive(worker):
+    while any(alive(child) for child in children):
         if time.monotonic() > deadline:
-            os.kill(worker, signal.SIGKILL)
-            pytest.fail("the worker outlived its killed parent")
+            for child in children:
+                if alive(child):
+                    os.kill(child, signal.SIGKILL)
+            pytest.fail("a worker or the resource tracker outlived its killed parent")
         time.sleep(0.1)
 
 
