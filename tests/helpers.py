@@ -82,3 +82,20 @@ def sleeping_cell(pid_file: str) -> int:
         f.write(str(os.getpid()))
     time.sleep(600)
     return 0
+
+
+def damaged_bytes(raw: bytes, data) -> bytes:
+    """``raw`` truncated, with a byte flipped, or replaced by JSON of another shape (drawn from
+    hypothesis's ``data``)."""
+    import json
+
+    from hypothesis import strategies as st
+
+    raw = bytearray(raw)
+    how = data.draw(st.sampled_from(["truncate", "flip", "json"]))
+    if how == "truncate":
+        return bytes(raw[: data.draw(st.integers(0, len(raw) - 1))])
+    if how == "flip":
+        raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
+        return bytes(raw)
+    return json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()

@@ -11,6 +11,8 @@ import pytest
 pytest.importorskip("gymnasium")  # the optional extra nirl-mj[gym]
 minari = pytest.importorskip("minari")
 
+from helpers import damaged_bytes  # noqa: E402
+
 from nirl_mj.cli import main  # noqa: E402
 from nirl_mj.data.dataset import load_dataset  # noqa: E402
 
@@ -149,3 +151,62 @@ def test_an_export_killed_between_its_two_renames_loses_neither_dataset(exported
     assert main(["export", str(exported), "--to", "minari", "--id", ID, "--quiet"]) == 2
     assert "exists; pass --overwrite" in capsys.readouterr().err  # the old one is back
     assert minari.load_dataset(ID).total_episodes == 3
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    """A Minari store holding one exported dataset, made once (copied by each example below)."""
+    import os
+
+    tmp = tmp_path_factory.mktemp("store")
+    old = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(tmp / "minari")
+    try:
+        demos = tmp / "demos.npz"
+        assert main(["demos", "--episodes", "2", "--seed", "1", "--workers", "1", "--quiet", "--out",
+                     str(demos), *SMALL]) == 0  # fmt: skip
+        assert main(["export", str(demos), "--to", "minari", "--id", ID, "--quiet"]) == 0
+    finally:
+        if old is None:
+            os.environ.pop("MINARI_DATASETS_PATH")
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = old
+    return tmp / "minari"
+
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_damage_to_a_minari_dataset_is_one_error_line_never_a_traceback(
+    store, tmp_path_factory, capsys, data
+):
+    """A Minari dataset's files (its HDF5 data, its metadata) truncated, byte-flipped or replaced:
+    `train --demos minari:ID` trains, or exits 2 with one line naming the dataset (issue 34)."""
+    import os
+    import shutil
+
+    root = tmp_path_factory.mktemp("damaged") / "minari"
+    shutil.copytree(store, root)
+    files = sorted(p for p in root.rglob("*") if p.is_file())
+    path = data.draw(st.sampled_from(files))
+    path.write_bytes(damaged_bytes(path.read_bytes(), data))
+    old = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    try:
+        capsys.readouterr()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # minari warns of a misconfigured dataset it then skips
+            run = str(root.parent / "run")
+            code = main(["train", "--demos", f"minari:{ID}", "--out", run, "--episodes", "1", "--quiet"])
+    finally:
+        os.environ["MINARI_DATASETS_PATH"] = old if old is not None else ""
+        if old is None:
+            os.environ.pop("MINARI_DATASETS_PATH")
+    err = capsys.readouterr().err
+    assert code in (0, 2) and "Traceback" not in err, err
+    if code == 2:
+        lines = [line for line in err.strip().splitlines() if line.startswith("nirl-mj")]
+        assert len(lines) == 1 and ID in lines[0], err

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import damaged_bytes
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -399,21 +400,6 @@ def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, 
         f.write(line + "\n")
     with pytest.raises(RunError, match=r"metrics.jsonl: line 4 "):
         RunDir(run).read_metrics()
-
-
-def damaged_bytes(raw: bytes, data) -> bytes:
-    """``raw`` truncated, with a byte flipped, or replaced by JSON of another shape (drawn from
-    hypothesis's ``data``)."""
-    import json
-
-    raw = bytearray(raw)
-    how = data.draw(st.sampled_from(["truncate", "flip", "json"]))
-    if how == "truncate":
-        return bytes(raw[: data.draw(st.integers(0, len(raw) - 1))])
-    if how == "flip":
-        raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
-        return bytes(raw)
-    return json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

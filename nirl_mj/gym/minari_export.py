@@ -243,7 +243,21 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
         raise MinariError(f"no local Minari dataset {dataset_id!r} (local: "
                           f"{', '.join(sorted(minari.list_local_datasets())) or 'none'}); write one with "
                           "nirl-mj export D.npz --to minari --id ID")  # fmt: skip
-    dataset = minari.load_dataset(dataset_id)
+    try:
+        return _trajectories(minari.load_dataset(dataset_id), dataset_id)
+    except MinariError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
+        # h5py and minari raise these on a damaged store: name the dataset and where it lies
+        from minari.storage import get_dataset_path
+
+        where = get_dataset_path(dataset_id)
+        raise MinariError(f"Minari dataset {dataset_id} ({where}) cannot be read: {exc}; write it again "
+                          "with nirl-mj export D.npz --to minari --id ID --overwrite") from None  # fmt: skip
+
+
+def _trajectories(dataset, dataset_id: str) -> list[Trajectory]:
+    """The episodes of the loaded Minari ``dataset`` as trajectories."""
     env_spec = dataset.spec.env_spec
     if env_spec is None or not isinstance(env_spec.kwargs.get("task"), dict):
         raise MinariError(f"Minari dataset {dataset_id} was not written by nirl-mj (no task in its env spec)")
