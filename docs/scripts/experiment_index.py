@@ -4,8 +4,10 @@ command, with its results where.
 Rendered from the files themselves: every TOML under tasks/ with a top-level ``kind`` (an experiment
 file), its ``description``, the command that runs it, its stored results (docs/results/NAME/, or
 docs/results/suites/NAME.* for a suite, or the folder the tests' RECORDED table names) and the docs
-that cite it. docs/EXPERIMENTS.md holds it in a generated block (``experiment-index``), rewritten
-by ``python docs/scripts/render_docs.py`` and checked by tests/test_docs.py.
+that cite it (README.md, RESULTS, ALGORITHM, EXTENDING and the notebook; not PERFORMANCE.md,
+which the benchmarks rewrite). docs/EXPERIMENTS.md holds it in a generated block
+(``experiment-index``), rewritten by ``python docs/scripts/render_docs.py`` and checked by
+tests/test_docs.py.
 
     python docs/scripts/experiment_index.py      # print it
 """
@@ -22,7 +24,6 @@ DOCS = (
     "README.md",
     "docs/RESULTS.md",
     "docs/ALGORITHM.md",
-    "docs/PERFORMANCE.md",
     "docs/EXTENDING.md",
     "docs/notebook/results.md",
     "docs/notebook/algorithm.md",
