@@ -166,7 +166,20 @@ def test_two_writers_of_one_run_or_experiment_the_second_is_refused_every_time(d
             process.wait()
         (tmp_path / "ready").unlink()
         assert main(argv) == 0  # taken over from the dead holder
-    assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet", "--report"]) == 0
+    report = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--report"]
+    assert main(report) == 0  # no one else writes: the report writes its tables
+    capsys.readouterr()
+    # while the experiment runs, a --report is no second writer: it prints its tables, writes nothing
+    process, pid = hold(out, tmp_path)
+    try:
+        before = tree_digests(out)
+        assert main(report) == 0
+        printed = capsys.readouterr().out
+        assert "| rule |" in printed and f"is being written by process {pid}" in printed
+        assert "printed, not written" in printed and tree_digests(out) == before
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait()
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

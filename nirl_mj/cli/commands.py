@@ -461,7 +461,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         for bar in bars:
             bar.close()
     print(table(summary, experiment))
-    print("wrote " + ", ".join(summary["files"]))
+    print(summary["not_written"] if "not_written" in summary else "wrote " + ", ".join(summary["files"]))
     for failure in summary["failures"]:
         print(
             f"FAILED {failure['id']} ({failure['attempts']} attempt(s)): {failure['error']}", file=sys.stderr

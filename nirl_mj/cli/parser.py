@@ -91,7 +91,8 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         "--report",
         action="store_true",
         help="run nothing: write the tables from the cells finished so "
-        "far (a partial report of a long or interrupted experiment; safe while it runs)",
+        "far (a partial report of a long or interrupted experiment; while the experiment runs, they are "
+        "printed, not written: one writer per output)",
     )
     if name in ("compare", "suite"):
         p.add_argument("--only", default=None, metavar="NAMES",

@@ -85,7 +85,7 @@ def run_compare(
     summary = summarise(experiment, report.results)
     summary["failures"] = failure_rows(report.failures)
     summary["unfinished"] = runner.unfinished
-    files = write_outputs(out, experiment, summary, report.results)
+    files = write_outputs(out, experiment, summary, report.results) if execution.writes_tables else []
     if experiment.strip is not None and not execution.report_only:
         if cell_id(experiment.strip.method, 0) in report.results:
             files.append(write_strip(out, experiment, jobs, log))

@@ -35,15 +35,28 @@ EXPERIMENT_FILE = "experiment.json"
 def one_writer(runner: Callable) -> Callable:
     """Decorates an experiment's runner ``(experiment, out, execution, ...)``: it runs holding the lock
     on OUT (``nirl_mj.data.lock``), so a second command writing the same OUT is refused with one line
-    naming the first one's process; a ``--report`` (it writes only its tables) takes none."""
+    naming the first one's process. A ``--report`` takes the lock too; while another process holds
+    it (the experiment is running), the report runs without writing anything: its summary carries
+    no files and says why under ``not_written``, and the command prints the tables instead."""
+    import dataclasses
     import functools
 
     @functools.wraps(runner)
     def locked(experiment: Experiment, out: str | Path, execution: Execution | None = None, *args, **kwargs):
-        from nirl_mj.data.lock import DirectoryLock
+        from nirl_mj.data.lock import DirectoryLock, LockedError
 
         if execution is not None and execution.report_only:
-            return runner(experiment, out, execution, *args, **kwargs)
+            try:
+                lock = DirectoryLock(out, f"{experiment.kind}").acquire()
+            except LockedError as busy:
+                summary = runner(experiment, out, dataclasses.replace(execution, writes_tables=False), *args,
+                                 **kwargs)  # fmt: skip
+                summary["not_written"] = f"{busy}: this partial report is printed, not written"
+                return summary
+            try:
+                return runner(experiment, out, execution, *args, **kwargs)
+            finally:
+                lock.release()
         with DirectoryLock(out, f"{experiment.kind}"):
             return runner(experiment, out, execution, *args, **kwargs)
 
@@ -276,6 +289,7 @@ class Execution:
     reuse: str | None = None  # compare: an earlier output directory whose same cells are taken
     only: tuple[str, ...] = ()  # compare: run these methods' cells only, report the others as stored
     points: tuple[str, ...] = ()  # suite, training axis: run these values' cells only, as ``only``
+    writes_tables: bool = True  # False for a --report while the experiment runs (``one_writer``)
 
     def __post_init__(self) -> None:
         if self.retries < 0:

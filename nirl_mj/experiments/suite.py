@@ -131,7 +131,8 @@ def run_suite(
     summary = summarise(experiment, rows)
     summary["failures"] = failure_rows(report.failures)
     summary["unfinished"] = runner.unfinished
-    summary["files"] = [str(f) for f in write_outputs(out, experiment, summary, rows, report.results)]
+    files = write_outputs(out, experiment, summary, rows, report.results) if execution.writes_tables else []
+    summary["files"] = [str(f) for f in files]
     return summary
 
 

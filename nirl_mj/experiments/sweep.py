@@ -105,7 +105,8 @@ def run_sweep(
     summary = summarise(experiment, tested.results)
     summary["failures"] = failure_rows({**trained.failures, **tested.failures, **blocked})
     summary["unfinished"] = runner.unfinished
-    summary["files"] = [str(f) for f in write_outputs(out, experiment, summary, tested.results)]
+    files = write_outputs(out, experiment, summary, tested.results) if execution.writes_tables else []
+    summary["files"] = [str(f) for f in files]
     return summary
 
 
