@@ -99,3 +99,29 @@ def damaged_bytes(raw: bytes, data) -> bytes:
         raw[data.draw(st.integers(0, len(raw) - 1))] ^= data.draw(st.integers(1, 255))
         return bytes(raw)
     return json.dumps(data.draw(st.sampled_from([[], [1, 2], None, "x", 3.5, {"a": [1]}]))).encode()
+
+
+def rule_experiment(folder: Path, methods: str = '["rule"]') -> tuple[Path, list[str]]:
+    """A tiny compare experiment of reference ``methods`` (2 runs of 1 test, 8-decision budget,
+    the planar drive) written in ``folder``: its output directory and the command that runs it."""
+    spec = folder / "e.toml"
+    spec.write_text(f'kind = "compare"\nruns = 2\ntests = 1\nmethods = {methods}\n'
+                    '[set.robot]\ndrive = "planar"\n[set.control]\nstep_budget = 8\n'
+                    '[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
+    out = folder / "out"
+    return out, ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
+
+
+def replay(env, episode, seed: int) -> tuple[dict, list, list]:
+    """A Minari ``episode``'s actions driven again in ``env`` from arena ``seed``: every observation
+    by key (the reset's first), the rewards and the (terminated, truncated) pairs."""
+    obs, _ = env.reset(seed=seed)
+    replayed = {key: [value] for key, value in obs.items()}
+    rewards, ends = [], []
+    for action in episode.actions:
+        obs, reward, terminated, truncated, _ = env.step(action)
+        rewards.append(reward)
+        ends.append((terminated, truncated))
+        for key, value in obs.items():
+            replayed[key].append(value)
+    return replayed, rewards, ends

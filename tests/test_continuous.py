@@ -12,7 +12,7 @@ import re
 
 import numpy as np
 import pytest
-from helpers import ROOT
+from helpers import ROOT, replay
 
 from nirl_mj.cli import main
 from nirl_mj.data.dataset import DatasetError, dataset_digest, load_dataset, save_dataset
@@ -146,15 +146,7 @@ def test_continuous_demonstrations_export_to_minari_and_the_recovered_env_replay
         actions = np.asarray(episode.actions)
         assert actions.dtype == np.float32 and actions.shape == (len(t), 2)
         assert np.array_equal(actions, t.actions)
-        obs, _ = env.reset(seed=seed)
-        replayed = {key: [value] for key, value in obs.items()}
-        rewards, ends = [], []
-        for action in episode.actions:
-            obs, reward, terminated, truncated, _ = env.step(action)
-            rewards.append(reward)
-            ends.append((terminated, truncated))
-            for key, value in obs.items():
-                replayed[key].append(value)
+        replayed, rewards, ends = replay(env, episode, seed)
         for key, values in replayed.items():
             assert np.array_equal(np.stack(values), episode.observations[key]), key
         assert np.array_equal(rewards, episode.rewards)

@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("gymnasium")  # the optional extra nirl-mj[gym]
 minari = pytest.importorskip("minari")
 
-from helpers import damaged_bytes  # noqa: E402
+from helpers import damaged_bytes, replay  # noqa: E402
 
 from nirl_mj.cli import main  # noqa: E402
 from nirl_mj.data.dataset import load_dataset  # noqa: E402
@@ -41,15 +41,7 @@ def test_recovered_environment_replays_every_episode_bit_for_bit(exported):
     seeds = [m["seed"] for m in dataset.storage.get_episode_metadata(dataset.episode_indices)]
     assert seeds == [t.arena_seed for t in trajectories]
     for episode, seed in zip(dataset.iterate_episodes(), seeds, strict=True):
-        obs, _ = env.reset(seed=seed)
-        replayed = {key: [value] for key, value in obs.items()}
-        rewards, ends = [], []
-        for action in episode.actions:
-            obs, reward, terminated, truncated, _ = env.step(action)
-            rewards.append(reward)
-            ends.append((terminated, truncated))
-            for key, value in obs.items():
-                replayed[key].append(value)
+        replayed, rewards, ends = replay(env, episode, seed)
         assert set(replayed) == set(episode.observations)
         for key, values in replayed.items():
             assert np.array_equal(np.stack(values), episode.observations[key]), key

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import damaged_bytes
+from helpers import damaged_bytes, rule_experiment
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -243,12 +243,7 @@ def test_a_damaged_eval_json_is_one_error_line_before_any_test(finished, tmp_pat
 def test_a_damaged_cell_is_computed_again_and_a_report_never_a_traceback(tmp_path, capsys, stored):
     import json
 
-    spec = tmp_path / "e.toml"
-    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule"]\n'
-                    '[set.robot]\ndrive = "planar"\n[set.control]\nstep_budget = 8\n'
-                    '[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
-    out = tmp_path / "out"
-    argv = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
+    out, argv = rule_experiment(tmp_path)
     assert main(argv) == 0
     cell = out / "cells" / "rule-run001.json"
     good = json.loads(cell.read_text())["result"]
@@ -451,13 +446,7 @@ def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(
 @pytest.fixture(scope="module")
 def experiment_out(tmp_path_factory) -> tuple[Path, list[str]]:
     """A finished tiny compare experiment (the rule, 2 runs of 1 test) and its command."""
-    tmp = tmp_path_factory.mktemp("experiment")
-    spec = tmp / "e.toml"
-    spec.write_text('kind = "compare"\nruns = 2\ntests = 1\nmethods = ["rule", "forward"]\n'
-                    '[set.robot]\ndrive = "planar"\n[set.control]\nstep_budget = 8\n'
-                    '[demos]\nepisodes = 1\nexpert = "rule"\n')  # fmt: skip
-    out = tmp / "out"
-    argv = ["compare", "--task", str(spec), "--out", str(out), "--quiet", "--executor", "serial"]
+    out, argv = rule_experiment(tmp_path_factory.mktemp("experiment"), '["rule", "forward"]')
     assert main(argv) == 0
     return out, argv
 
