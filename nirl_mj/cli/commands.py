@@ -37,6 +37,7 @@ from nirl_mj.learn.predictability import predictability
 from nirl_mj.learn.pretreat import map_pretreat
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.episode import run_episode
+from nirl_mj.sim.rollouts import Backend, make_rollouts
 from nirl_mj.sim.spec import SpecError, apply_overrides, load_task
 from nirl_mj.sim.task import make_env
 
@@ -242,6 +243,7 @@ def cmd_train(args: argparse.Namespace) -> int:
                             "change them (train a new run with another --out instead)")  # fmt: skip
         spec, config, saved_demos, seed = saved_settings(args.out)
         demos = args.demos or saved_demos
+        backend = _backend(args, RunDir(args.out).read_record().get("backend"))
     else:
         if not args.demos:
             raise FileNotFoundError("--demos is required (record some with `nirl-mj demos`)")
@@ -252,6 +254,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             changes["episodes"] = args.episodes
         config = LearnerConfig.preset(args.variant or "default", **changes)
         spec, demos, seed = _task(args), args.demos, args.seed or 0
+        backend = _backend(args)
     done = RunDir(args.out).iterations_done() if args.resume else 0
     recording = Recording(_check_output(args.rerun, args.overwrite)) if args.rerun else None
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
@@ -265,7 +268,7 @@ def cmd_train(args: argparse.Namespace) -> int:
                 recording.training([vars(m)])  # per iteration, from the metrics already computed
 
         try:
-            record = train(args.out, spec, demos, config, seed, args.resume, progress)
+            record = train(args.out, spec, demos, config, seed, args.resume, progress, backend)
         except BaseException:
             if recording:
                 recording.abort()
@@ -349,17 +352,23 @@ def cmd_eval(args: argparse.Namespace) -> int:
         if not os.access(subject.run.path, os.W_OK):
             raise RunError(f"{subject.run.path} is not writable: eval stores its result in eval.json there")
     seeds = subject.test_seeds(args.seed, args.tests)
+    backend = _backend(args)
+    warp = backend.name != "cpu"
+    rollouts = make_rollouts(backend, spec) if warp else None
     with _bar(args, args.tests, "test") as bar:
-        metrics, trajectories = evaluate(make_env(spec), subject.policy, seeds, subject.name,
-                                         on_episode=lambda t: bar.update())  # fmt: skip
+        env = None if warp else make_env(spec)
+        metrics, trajectories = evaluate(env, subject.policy, seeds, subject.name,
+                                         on_episode=lambda t: bar.update(), rollouts=rollouts)  # fmt: skip
     result = {
         **metrics,
         "task": spec.name,
         "seed": args.seed,
         "policy": args.which if args.run else args.policy,
+        **({"backend": backend.to_dict()} if warp else {}),
     }
+    key = f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}" + ("|backend=warp" if warp else "")
     if subject.run:
-        subject.run.add_evaluation(f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}", result)
+        subject.run.add_evaluation(key, result)
     print(evaluation_line(spec.name, metrics))
     if args.rerun:
         from nirl_mj.inspect.recording import record_evaluation
@@ -372,6 +381,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result))
     return 0
+
+
+def _backend(args: argparse.Namespace, saved: dict | None = None) -> Backend:
+    """The backend that --backend, --worlds and --device name (a resumed training: the run's ``saved``
+    one unless they say otherwise)."""
+    saved = saved or {}
+    name = args.backend or saved.get("name", "cpu")
+    if name == "cpu" and (args.worlds or args.device):
+        raise SpecError("--worlds and --device go with --backend warp (the cpu backend runs one world)")
+    default = Backend()
+    return Backend(name, args.worlds or saved.get("worlds", default.worlds),
+                   args.device or saved.get("device", default.device))  # fmt: skip
 
 
 def cmd_render(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
 from nirl_mj.learn.config import VARIANTS
+from nirl_mj.sim.rollouts import BACKENDS
 
 DESCRIPTION = "Neural inverse reinforcement learning (NIRL) for a Festo Robotino simulated in MuJoCo."
 
@@ -53,6 +54,23 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
         key, _, what = option.partition("=")
         if key == "json":
             parser.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
+        elif key == "backend":
+            parser.add_argument(
+                "--backend",
+                choices=BACKENDS,
+                default=None,
+                help=f"where {what} run: cpu, the dm_control task (default; a resumed "
+                "training: the run's), or warp, many worlds at once on MuJoCo Warp "
+                "(nirl-mj[warp])",
+            )
+            parser.add_argument(
+                "--worlds",
+                type=_positive_int,
+                default=None,
+                help="with --backend warp: worlds stepped at once (default: 64)",
+            )
+            parser.add_argument("--device", choices=("cpu", "cuda"), default=None,
+                                help="with --backend warp: Warp's device (default: cuda)")  # fmt: skip
         elif key == "quiet":
             parser.add_argument("--quiet", action="store_true", help="no progress bar")
         elif key == "overwrite":
@@ -157,6 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="dataset path (.npz)")
 
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
+                 "backend=rollouts, validation and selection episodes",
                  "rerun=training scalars per iteration, demonstrations with r_theta, reward map",
                  task="navigate; with --resume the run's own")  # fmt: skip
     p.add_argument("--demos", help="dataset from `nirl-mj demos` (.npz), or minari:ID (a local Minari "
@@ -188,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
-                 "quiet", "overwrite", "rerun=every test episode (with r_theta and the reward map for --run)",
+                 "quiet", "overwrite", "backend=the test episodes",
+                 "rerun=every test episode (with r_theta and the reward map for --run)",
                  task="the run's own")  # fmt: skip
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory")

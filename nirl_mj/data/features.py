@@ -67,17 +67,21 @@ def target_region(bearing: float | np.ndarray) -> np.ndarray:
     return (np.floor(b / SECTOR_WIDTH).astype(np.int64) % N_SENSORS + 1).astype(np.int8)
 
 
-def state_features(danger: np.ndarray, wall: np.ndarray, region: int, detected: bool) -> np.ndarray:
+def state_features(
+    danger: np.ndarray, wall: np.ndarray, region: int | np.ndarray, detected: bool | np.ndarray
+) -> np.ndarray:
     """phi(s) = [D_t, V_t, I_t, U_t] (paper section III-A), float32 of shape (16,).
 
     ``danger`` and ``wall`` hold all nine sensors, shape (9,); only S1-S4 and
-    S7-S9 enter phi.
+    S7-S9 enter phi. A batch works alike: ``danger`` and ``wall`` (..., 9), ``region`` and
+    ``detected`` (...) -> (..., 16).
     """
-    phi = np.empty(N_FEATURES, dtype=np.float32)
-    phi[0:7] = np.asarray(danger)[list(FEATURE_SENSORS)]
-    phi[7] = region
-    phi[8] = 1.0 if detected else 0.0
-    phi[9:16] = np.asarray(wall)[list(FEATURE_SENSORS)]
+    danger = np.asarray(danger)
+    phi = np.empty((*danger.shape[:-1], N_FEATURES), dtype=np.float32)
+    phi[..., 0:7] = danger[..., list(FEATURE_SENSORS)]
+    phi[..., 7] = region
+    phi[..., 8] = np.asarray(detected, dtype=np.float32)
+    phi[..., 9:16] = np.asarray(wall)[..., list(FEATURE_SENSORS)]
     return phi
 
 

@@ -18,19 +18,29 @@ from nirl_mj.data.outcomes import metrics_of
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experts.policies import PolicyAgent
 from nirl_mj.sim.episode import Agent, run_episode
+from nirl_mj.sim.rollouts import Rollouts
 
 
 def evaluate(
-    env: dm_env.Environment,
+    env: dm_env.Environment | None,
     policy: Callable[[np.ndarray], int] | Agent,
     seeds: Iterable[int],
     name: str = "policy",
     on_episode: Callable[[Trajectory], None] | None = None,
+    rollouts: Rollouts | None = None,
 ) -> tuple[dict, list[Trajectory]]:
     """Runs the (greedy) ``policy`` on phi(s), or an Agent (an expert), once in each arena; returns
     metrics and trajectories. On a task with continuous actions the policy answers with the two
-    shares in [-1, 1] (or a discrete action, driven as its twin: ``sim.episode.run_episode``)."""
+    shares in [-1, 1] (or a discrete action, driven as its twin: ``sim.episode.run_episode``).
+    ``rollouts`` runs them on another backend (:mod:`nirl_mj.sim.rollouts`; then ``env`` is unused
+    and ``on_episode`` is called once they all ended)."""
     agent = policy if hasattr(policy, "act") else PolicyAgent(policy, name)
+    if rollouts is not None:
+        trajectories = rollouts(agent, list(seeds))
+        for trajectory in trajectories:
+            if on_episode:
+                on_episode(trajectory)
+        return metrics_of(trajectories), trajectories
     trajectories = []
     for seed in seeds:
         trajectories.append(run_episode(env, agent, seed))

@@ -13,11 +13,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import dm_env
 import numpy as np
 
 from nirl_mj.data.atomic import leftover_temporaries
@@ -34,8 +33,7 @@ from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.loop import IrlLoop, Metrics, greedy_policy
 from nirl_mj.learn.reward import RewardModel
 from nirl_mj.sim import spec as specs
-from nirl_mj.sim.episode import Agent, run_episode
-from nirl_mj.sim.task import make_env
+from nirl_mj.sim.rollouts import CPU, Backend, Rollouts, make_rollouts
 
 Policy = Callable[[np.ndarray], int]
 
@@ -109,10 +107,6 @@ def _greedy(weights: dict[str, np.ndarray], config: LearnerConfig) -> Policy:
     return greedy_policy(net, inputs)
 
 
-def _rollouts(env: dm_env.Environment) -> Callable[[Agent, Sequence[int]], list[Trajectory]]:
-    return lambda agent, seeds: [run_episode(env, agent, s) for s in seeds]
-
-
 def train(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
@@ -121,16 +115,19 @@ def train(
     seed: int = 0,
     resume: bool = False,
     on_metrics: Callable[[Metrics], None] | None = None,
+    backend: Backend = CPU,
 ) -> dict:
     """Trains (or resumes) the configured method in ``run_dir``; returns the run record. One writer at
     a time (``nirl_mj.data.lock``); a resume checks the whole checkpoint and its agreement with the
-    record and the metrics before it changes anything."""
+    record and the metrics before it changes anything. ``backend`` runs the rollouts, validation
+    and selection episodes (:mod:`nirl_mj.sim.rollouts`; a run not on the ``cpu`` backend records it,
+    and a resume must use the same)."""
     if task.control.actions != "discrete":  # refused before the run directory is made
         raise ValueError(f"task {task.name} has continuous actions, but NIRL and the IRL baselines learn a "
                          'policy over the six discrete actions: accepted: a task with [control] actions = '
                          '"discrete"')  # fmt: skip
     with DirectoryLock(run_dir, "training"):
-        return _train(run_dir, task, demos_path, config, seed, resume, on_metrics)
+        return _train(run_dir, task, demos_path, config, seed, resume, on_metrics, backend)
 
 
 def _train(
@@ -141,6 +138,7 @@ def _train(
     seed: int,
     resume: bool,
     on_metrics: Callable[[Metrics], None] | None = None,
+    backend: Backend = CPU,
 ) -> dict:
     """:func:`train` holding the run's lock."""
     run = RunDir(run_dir)
@@ -159,6 +157,8 @@ def _train(
         "validation_seeds": validation_seeds(config, seed),
         "reads": learner_reads(config),  # the information budget (nirl_mj.experiments.reads)
     }
+    if backend.name != "cpu":
+        record["backend"] = backend.to_dict()
     if resume:
         saved = run.read_record()
         # a record written before a setting existed holds its default: compare resolved configs
@@ -169,6 +169,9 @@ def _train(
                     f"{run} was trained with another {key}; resume with the same options, "
                     "or train in a new --out"
                 )
+        if saved.get("backend") != record.get("backend"):
+            raise RunError(f"{run} was trained on the {saved.get('backend', CPU.to_dict())['name']} backend "
+                           f"({saved.get('backend', CPU.to_dict())}); resume it on the same one")  # fmt: skip
         if saved.get("demos_sha256", record["demos_sha256"]) != record["demos_sha256"]:
             raise RunError(
                 f"{demos_path} holds other demonstrations than {run} was trained on (content sha256 "
@@ -202,7 +205,7 @@ def _train(
         run.write_record(record)
         run.start_metrics()
     try:
-        return _iterate(run, learner, config, task, seed, record, on_metrics)
+        return _iterate(run, learner, config, task, seed, record, on_metrics, backend)
     except Exception:
         # failed before its first iteration (an arena that cannot be built...): leave no half-started
         # run that would block the same --out (an interrupted one stays, for --resume)
@@ -220,26 +223,28 @@ def _iterate(
     seed: int,
     record: dict,
     on_metrics: Callable[[Metrics], None] | None,
+    backend: Backend = CPU,
 ) -> dict:
     """The iterations left, the selection and the final files."""
     loop = config.loop
-    env = make_env(specs.replace(task, robot={"drive": loop.train_drive}))
+    rollouts = make_rollouts(backend, specs.replace(task, robot={"drive": loop.train_drive}))
     first_round = record["validation_seeds"][: loop.validation_arenas]
 
     def validate(net: network.QNetwork) -> float | None:
         if loop.selection != "validation" or learner.iteration % loop.validate_every:
             return None
-        return evaluate(env, greedy_policy(net, NetworkInputs.of(loop)), first_round)[0]["success_rate"]
+        policy = greedy_policy(net, NetworkInputs.of(loop))
+        return evaluate(None, policy, first_round, rollouts=rollouts)[0]["success_rate"]
 
     k = loop.trajectories_per_episode
     while learner.iteration < loop.episodes and not learner.stopped:
         seeds = domain_seeds("train", seed, k, start=learner.iteration * k)
-        metrics = learner.step(_rollouts(env), seeds, validate)
+        metrics = learner.step(rollouts, seeds, validate)
         run.append_metrics(metrics.__dict__)
         run.write_checkpoint(learner.state())
         if on_metrics:
             on_metrics(metrics)
-    selection = select(learner, env, record["validation_seeds"][loop.validation_arenas :])
+    selection = select(learner, rollouts, record["validation_seeds"][loop.validation_arenas :])
     return finish(run, learner, {**record, "selection": selection})
 
 
@@ -286,7 +291,7 @@ def planned_seeds(config: LearnerConfig, seed: int) -> set[int]:
     return {*validation_seeds(config, seed), *train}
 
 
-def select(learner: IrlLoop, env: dm_env.Environment, second_round: list[int]) -> dict:
+def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dict:
     """The kept policy to report, by the configured rule, with how it was chosen.
 
     "validation": the ``final_candidates`` best first-round policies are evaluated
@@ -302,7 +307,8 @@ def select(learner: IrlLoop, env: dm_env.Environment, second_round: list[int]) -
     candidates = sorted(order[: loop.final_candidates])
     combined = {}
     for i in candidates:
-        second = evaluate(env, _greedy(learner.kept[i], learner.config), second_round)[0]["success_rate"]
+        policy = _greedy(learner.kept[i], learner.config)
+        second = evaluate(None, policy, second_round, rollouts=rollouts)[0]["success_rate"]
         combined[i] = (learner.scores[i] + second) / 2
     chosen = max(candidates, key=lambda i: (combined[i], -i))
     return {

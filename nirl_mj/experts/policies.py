@@ -63,6 +63,8 @@ POLICIES: dict[str, Policy] = {"forward": always_forward, "rule": rule_policy}
 class PolicyAgent:
     """A policy on phi(s) behind the :class:`~nirl_mj.sim.episode.Agent` interface."""
 
+    acts_on_features = True  # reads phi(s) alone: one agent can drive many worlds at once
+
     def __init__(self, policy: Policy, kind: str) -> None:
         self.policy = policy
         self.kind = kind

@@ -50,6 +50,8 @@ from nirl_mj.learn.terminal import absorbing_values
 class NetworkAgent:
     """The neural policy as an agent: Boltzmann (eq. 8) while training, greedy (eq. 9) after."""
 
+    acts_on_features = True  # reads phi(s) alone: one agent can drive many worlds at once
+
     def __init__(
         self, net: network.QNetwork, inputs: NetworkInputs, eta: float | None, rng: np.random.Generator
     ) -> None:

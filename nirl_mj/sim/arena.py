@@ -360,6 +360,20 @@ class NavigationArena(composer.Arena):
         they are parked out of reach)."""
         return self._get_cache(physics).obstacle_ids
 
+    def arm_every_slot(self, physics: Any, model: mujoco.MjModel) -> None:
+        """Gives every static obstacle slot of ``model`` (a copy of ``physics``' compiled model) the
+        contact bits of an obstacle in use. For a simulator that keeps one set of contact bits for
+        many arenas at once (MuJoCo Warp, :mod:`nirl_mj.sim.warp_worlds`): an unused slot is parked
+        at ``PARK_Z``, out of every robot's and ray's reach, so its bits never matter there, and an
+        obstacles' pair never collides (contype 1 against conaffinity 2)."""
+        cache = self._get_cache(physics)
+        for pool in ("box", "cylinder", "wall"):
+            bodies, geoms, _ = cache.pools[pool]
+            model.geom_contype[geoms] = _OBSTACLE_CONTYPE
+            model.geom_conaffinity[geoms] = _OBSTACLE_CONAFFINITY
+            model.body_contype[bodies] = _OBSTACLE_CONTYPE
+            model.body_conaffinity[bodies] = _OBSTACLE_CONAFFINITY
+
     def apply_layout(self, physics: Any, layout: Layout, forward: bool = True) -> None:
         """Shows ``layout`` in the compiled model of ``physics``.
 

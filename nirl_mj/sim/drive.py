@@ -276,12 +276,14 @@ class DriveController:
 
     _CACHE_SIZE = 4096
 
-    def __init__(self) -> None:
+    def __init__(self, cache: dict | None = None) -> None:
+        """``cache``: a plan memo to share between controllers (many worlds of one task); by default
+        each controller has its own."""
         self._last = np.zeros(3)
         # A plan depends only on its arguments and the last command, and episodes
         # keep revisiting the same few states (cruising, turning from cruise):
         # memoising skips the per-period Python loop of rate_limit.
-        self._plans: dict[tuple, np.ndarray] = {}
+        self._plans: dict[tuple, np.ndarray] = {} if cache is None else cache
 
     @property
     def last(self) -> np.ndarray:

@@ -98,6 +98,30 @@ def _clearance(dist: np.ndarray, hit: np.ndarray, body_radius: float, sensing_ra
     return np.where(rays < sensing_range, np.maximum(rays, 0.0), np.inf)
 
 
+def sensor_readings(
+    dist: np.ndarray,
+    geomid: np.ndarray,
+    wall_mask: np.ndarray,
+    rays_per_sensor: int,
+    sensing_range: float,
+    body_radius: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nine sensors' readings from their rays' hits: ``dist`` (..., 9 * rays_per_sensor) metres
+    from the robot's centre and ``geomid`` (same shape, -1 for a miss) -> ``(ranges (..., 9), rays
+    (..., 9 * rays_per_sensor), wall (..., 9))`` as :class:`Scan` holds them. Any leading batch
+    shape: one robot (:class:`RangeSensors`) or many worlds (:mod:`nirl_mj.sim.warp_worlds`)."""
+    rays = _clearance(dist, geomid >= 0, body_radius, sensing_range)
+    batch = rays.shape[:-1]
+    per_sensor = rays.reshape(*batch, features.N_SENSORS, rays_per_sensor)
+    nearest = np.argmin(per_sensor, axis=-1)[..., None]
+    ranges = np.take_along_axis(per_sensor, nearest, axis=-1)[..., 0]
+    nearest_geom = np.take_along_axis(
+        np.asarray(geomid).reshape(*batch, features.N_SENSORS, rays_per_sensor), nearest, axis=-1
+    )[..., 0]
+    wall = np.isfinite(ranges) & np.asarray(wall_mask, dtype=bool)[np.maximum(nearest_geom, 0)]
+    return ranges, rays, wall
+
+
 class RangeSensors:
     """Casts the sensor rays for one compiled model.
 
@@ -156,14 +180,9 @@ class RangeSensors:
             n + 1,
             self._cutoff,
         )
-        rays = _clearance(self._dist[:n], self._geomid[:n] >= 0, self._body_radius, self._range)
-        dist = rays.reshape(features.N_SENSORS, self._k)
-        nearest = np.argmin(dist, axis=1)
-        rows = np.arange(features.N_SENSORS)
-        ranges = dist[rows, nearest]
-        hit = np.isfinite(ranges)
-        nearest_geom = self._geomid[:n].reshape(features.N_SENSORS, self._k)[rows, nearest]
-        wall = hit & self._wall_mask[np.maximum(nearest_geom, 0)]
+        ranges, rays, wall = sensor_readings(
+            self._dist[:n], self._geomid[:n], self._wall_mask, self._k, self._range, self._body_radius
+        )
         blocked = self._geomid[n] >= 0 and self._dist[n] < target_distance
         visible = target_distance - self._body_radius <= self._range and not blocked
         bearing = float(np.arctan2(to_target[1], to_target[0]) - yaw)

@@ -41,8 +41,8 @@ _DIVERGENCE_WARNINGS = (
 )
 
 
-_UPRIGHT = math.cos(math.radians(45.0))  # tilt beyond 45 degrees: tipped over
-_AIRBORNE = 0.25  # metres the base may rise or sink before it counts as flying
+UPRIGHT = math.cos(math.radians(45.0))  # tilt beyond 45 degrees: tipped over
+AIRBORNE = 0.25  # metres the base may rise or sink before it counts as flying
 
 
 class Outcome(enum.IntEnum):
@@ -353,10 +353,10 @@ class NavigationTask(composer.Task):
         and 0.02 s); the reason is kept in :attr:`physics_error`."""
         if any(self._data.warning[w].number for w in _DIVERGENCE_WARNINGS):
             self.physics_error = "MuJoCo reported a diverged state (bad qpos/qvel/qacc)"
-        elif self._base_up[0] < _UPRIGHT:
+        elif self._base_up[0] < UPRIGHT:
             tilt = math.degrees(math.acos(float(np.clip(self._base_up[0], -1.0, 1.0))))
             self.physics_error = f"the robot tipped over ({tilt:.0f} degrees from upright)"
-        elif abs(self._base_z[0] - self._start_z) > _AIRBORNE:
+        elif abs(self._base_z[0] - self._start_z) > AIRBORNE:
             self.physics_error = f"the robot left the floor (base {self._base_z[0] - self._start_z:+.2f} m)"
         return bool(self.physics_error)
 

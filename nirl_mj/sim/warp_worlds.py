@@ -1,0 +1,496 @@
+"""Many arenas at once: N worlds of one navigation task on MuJoCo Warp (the ``warp`` extra).
+
+The dm_control task (:mod:`nirl_mj.sim.task`) stays the reference and the default; this module
+steps N copies of its compiled model in one batch, each world with its own arena, on Warp's CPU
+device or a GPU (``device="cuda"``). What every world does is the task's, piece by piece:
+
+- **Arenas and starts** come from the reference task itself: a world that starts an episode in
+  arena ``seed`` is given what ``env.reset()`` of the dm_control environment seeded ``seed``
+  produced (the obstacle slots' poses, sizes and bounds as per-world model fields; qpos, qvel,
+  ctrl). So both backends drive the same arena from the same state.
+- **Actions** go through the same :class:`~nirl_mj.sim.drive.DriveController` (one per world,
+  one shared plan cache) into wheel commands, one per command period (default 10 ms).
+- **Outcomes** are checked after every command period as the task checks them: a contact
+  without the floor is a collision, the base within the target radius an arrival, and either
+  comes with a divergence check (tipped over, airborne, not finite). At the end of a decision
+  the state is brought up to date (``forward``, as the task's ``after_step``), checked again,
+  and the step budget applied. A world whose outcome is decided keeps its wheel commands until
+  its next episode (the task stops stepping it; its state no longer matters), because of the
+  limitation below.
+- **Sensing**: the nine sensors' rays and the target ray through ``mujoco_warp.rays`` (group 0
+  only, as ``mj_multiRay``), then the task's own numpy code (:func:`~nirl_mj.sim.sensing.
+  sensor_readings`, :mod:`nirl_mj.data.features`) on the batch.
+
+Contact bits are one set for all worlds in Warp: every obstacle slot is armed
+(:meth:`~nirl_mj.sim.arena.NavigationArena.arm_every_slot`); unused slots are parked far below
+the floor, as on the CPU. Warp computes in float32 where the CPU task uses float64, and its
+contact solver differs in the last digits: the two agree on phi(s) for the first decisions of
+an episode and on almost every episode's outcome, not bit for bit (``tests/test_warp_worlds.py``
+states the tolerance; ``bench/bench_backend.py`` measures it).
+
+A limitation measured with mujoco-warp 3.17.0 (Warp 1.19, CPU device): Warp's Newton solver,
+the task's, turns this model's state into NaN within about 16 steps of the robot resting on the
+floor with its wheels stopped (the elliptic friction cones divide by a tangential slip that
+float32 rounds towards zero); MuJoCo's float64 solver does not. The conjugate-gradient solver
+stays finite but does not converge in the task's 100 iterations and drifts from the CPU
+trajectories within a few decisions, so the backend keeps Newton. A discrete action always moves
+the robot, so such a rest happens only after an episode ends (handled as above) or on a
+continuous task whose policy commands (0, 0) for long: the NaN is then caught at the end of the
+decision and the episode ends as a physics error, where the CPU task would go on.
+
+Supported: the ``tyre`` drive (the task's default) and the ``planar`` one (NIRL's training drive,
+``train_drive``: its world-frame commands follow the heading at every command period, in a
+kernel), discrete and continuous actions, static obstacles. Refused with a clear error: the
+``rollers`` drive (it runs, but measured on 2 arenas its many small roller contacts
+parted from the CPU task's within an episode: one arena ended in a collision where the CPU task's
+robot arrived); moving obstacles (moved in Python between periods); the memory guide
+(``sensing.guide = "memory"``, a per-episode Python state).
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import dm_env
+import numpy as np
+
+from nirl_mj.data import features
+from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder
+from nirl_mj.sim.drive import BODY_RADIUS, DriveController, action_share, body_twist
+from nirl_mj.sim.sensing import ray_angles, sensor_readings
+from nirl_mj.sim.spec import TaskSpec, load_task
+from nirl_mj.sim.task import (
+    AIRBORNE,
+    UPRIGHT,
+    Outcome,
+    _checked_action,
+    _checked_twist,
+    action_scale,
+    continuous_action_spec,
+    make_env,
+    share_twist,
+)
+
+ARENA_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_aabb", "geom_rbound", "geom_rgba")
+"""The model fields a layout writes (``NavigationArena.apply_layout``), held per world."""
+
+_STATE_FIELDS = ("qpos", "qvel", "ctrl", "geom_xpos", "geom_xmat")
+"""Data fields a world's start copies from the reference. Warp computes the poses of geoms fixed to
+the world once (``make_data``), not in every ``kinematics`` as MuJoCo does: the obstacle slots'
+poses, which change with every arena, are copied with the state."""
+
+DEVICES = ("cpu", "cuda")
+
+
+def unsupported(spec: TaskSpec) -> list[str]:
+    """What of ``spec`` the Warp backend does not simulate (empty: all of it)."""
+    problems = []
+    if spec.robot.drive == "rollers":
+        problems.append('robot.drive = "rollers" (accepted: "tyre", "planar")')
+    if spec.arena.moving_obstacles:
+        problems.append(f"arena.moving_obstacles = {spec.arena.moving_obstacles} (accepted: 0)")
+    if spec.sensing.guide == "memory":
+        problems.append('sensing.guide = "memory" (accepted: "target")')
+    return problems
+
+
+def _import_warp():
+    try:
+        import mujoco_warp as mjw
+        import warp as wp
+    except ImportError as e:
+        raise RuntimeError(
+            f"the warp backend needs the optional extra: pip install -e '.[warp]' ({e})"
+        ) from None
+    wp.config.quiet = True
+    return wp, mjw
+
+
+class WarpWorlds:
+    """N worlds of one task on MuJoCo Warp; every world runs its own episode.
+
+    ``task`` is a task name, file or :class:`TaskSpec`; ``worlds`` the batch size N; ``device``
+    ``"cpu"`` (Warp's CPU device: slow, for tests) or ``"cuda"``. ``contacts_per_world`` and
+    ``constraints_per_world`` size Warp's buffers (an overflow raises RuntimeError, never
+    truncates silently). The first step compiles Warp's kernels (about a minute on the CPU,
+    cached on disk afterwards).
+    """
+
+    def __init__(
+        self,
+        task: str | TaskSpec,
+        worlds: int,
+        device: str = "cpu",
+        contacts_per_world: int = 32,
+        constraints_per_world: int = 160,
+    ) -> None:
+        spec = load_task(task)
+        problems = unsupported(spec)
+        if problems:
+            raise ValueError(f"task {spec.name}: the warp backend does not simulate {'; '.join(problems)}")
+        if not isinstance(worlds, int | np.integer) or worlds < 1:
+            raise ValueError(f"worlds must be a positive integer, got {worlds!r}")
+        if device not in DEVICES:
+            raise ValueError(f"device {device!r}: accepted: {', '.join(DEVICES)}")
+        self._wp, self._mjw = wp, mjw = _import_warp()
+        self._command, self._touches, self._judge = _kernels()
+        self.spec, self.n, self.device = spec, int(worlds), device
+        self._reference = make_env(spec)
+        self._reference.reset()
+        physics, task_ = self._reference.physics, self._reference.task
+        self._m, self._d = physics.model.ptr, physics.data.ptr
+        robot, arena = task_.robot, task_.root_entity
+        self._base = int(physics.bind(robot.base_body).element_id)
+        self._origin = int(physics.bind(robot.sensor_origin).element_id)
+        self._ground = int(physics.bind(arena.ground_geom).element_id)
+        self._qposadr = int(physics.bind(robot.pose_joints(physics)[0]).qposadr)
+        self._planar = spec.robot.drive == "planar"
+        actuators = np.asarray(physics.bind(robot.drive_actuators).element_id, dtype=int)
+        if actuators.tolist() != list(range(actuators[0], actuators[0] + 3)):
+            raise ValueError(f"the drive actuators must be three in a row, got ids {actuators.tolist()}")
+        self._ctrl_start = int(actuators[0])
+        self._wall_mask = np.asarray(arena.wall_mask(physics), dtype=bool)
+        model = copy.deepcopy(self._m)
+        arena.arm_every_slot(physics, model)
+
+        control = spec.control
+        self._substeps = round(control.command_period / spec.physics_timestep)
+        self._n_cmd = round(control.decision_period / control.command_period)
+        self._continuous = control.actions == "continuous"
+        self._angles = ray_angles(spec.robot.rays_per_sensor)
+        n_rays = self._angles.size + 1  # the last ray points at the target
+        self._host_fields = {f: np.repeat(getattr(self._m, f)[None], self.n, axis=0) for f in ARENA_FIELDS}
+        with wp.ScopedDevice(device):
+            self._mw = mjw.put_model(model, batch_sizes={f: self.n for f in ARENA_FIELDS})
+            self._dw = mjw.make_data(
+                model, nworld=self.n, nconmax=contacts_per_world, njmax=constraints_per_world
+            )
+            self._commands = wp.zeros((self._n_cmd, self.n), dtype=wp.vec3)
+            self._touched = wp.zeros(self.n, dtype=int)
+            self._outcome_w = wp.zeros(self.n, dtype=int)
+            self._target_w = wp.zeros(self.n, dtype=wp.vec2)
+            self._start_z_w = wp.zeros(self.n, dtype=float)
+            self._ray_pnt = wp.zeros((self.n, n_rays), dtype=wp.vec3)
+            self._ray_vec = wp.zeros((self.n, n_rays), dtype=wp.vec3)
+            self._ray_exclude = wp.full(n_rays, -1, dtype=int)
+            self._ray_dist = wp.zeros((self.n, n_rays), dtype=float)
+            self._ray_geom = wp.zeros((self.n, n_rays), dtype=int)
+            self._ray_normal = wp.zeros((self.n, n_rays), dtype=wp.vec3)
+        self._plans: dict = {}
+        self._drives = [DriveController(cache=self._plans) for _ in range(self.n)]
+        self.seeds = np.full(self.n, -1, dtype=np.int64)
+        self.steps = np.zeros(self.n, dtype=np.int64)
+        self.outcomes = np.full(self.n, int(Outcome.RUNNING), dtype=np.int32)
+        self._targets = np.zeros((self.n, 2))
+        self._start_z = np.zeros(self.n)
+        self.observation: dict[str, np.ndarray] = {}
+
+    # -- episodes ----------------------------------------------------------------------
+
+    def reset(self, worlds: Sequence[int], seeds: Sequence[int]) -> None:
+        """Starts an episode in arena ``seeds[k]`` in world ``worlds[k]`` (the others keep theirs),
+        then senses every world."""
+        worlds = np.asarray(worlds, dtype=np.int64).reshape(-1)
+        seeds = np.asarray(seeds, dtype=np.int64).reshape(-1)
+        if worlds.shape != seeds.shape or np.any((worlds < 0) | (worlds >= self.n)):
+            raise ValueError(f"reset: worlds (0..{self.n - 1}) and seeds must pair up, got {worlds}, {seeds}")
+        wp, mjw, dw = self._wp, self._mjw, self._dw
+        mask = np.zeros(self.n, dtype=bool)
+        mask[worlds] = True
+        with wp.ScopedDevice(self.device):
+            mjw.reset_data(self._mw, dw, reset=wp.array(mask, dtype=bool))
+            state = {name: getattr(dw, name).numpy() for name in _STATE_FIELDS}
+            for w, seed in zip(worlds.tolist(), seeds.tolist(), strict=True):
+                self._reference.random_state.seed(seed)
+                self._reference.reset()
+                for name, rows in self._host_fields.items():
+                    rows[w] = getattr(self._m, name)
+                for name, rows in state.items():
+                    rows[w] = getattr(self._d, name).reshape(rows.shape[1:])
+                layout = self._reference.task.layout
+                self._targets[w] = layout.target
+                self._start_z[w] = self._d.xpos[self._base, 2]
+                self._drives[w].reset()
+                self.seeds[w], self.steps[w], self.outcomes[w] = seed, 0, int(Outcome.RUNNING)
+            for name, rows in self._host_fields.items():
+                getattr(self._mw, name).assign(rows)
+            for name, rows in state.items():
+                getattr(dw, name).assign(rows)
+            self._target_w.assign(self._targets.astype(np.float32))
+            self._start_z_w.assign(self._start_z.astype(np.float32))
+            self._outcome_w.assign(self.outcomes)
+            mjw.forward(self._mw, dw)
+        self._sense()
+
+    def step(self, actions: Sequence[Any]) -> None:
+        """One decision in every running world: ``actions[w]`` an action 0..5 (or, on a task with
+        continuous actions, the twist (forward m/s, yaw rate rad/s)); finished worlds ignore theirs.
+        Updates :attr:`outcomes`, :attr:`steps` and :attr:`observation`."""
+        if len(actions) != self.n:
+            raise ValueError(f"step: one action per world ({self.n}), got {len(actions)}")
+        wp, mjw, control = self._wp, self._mjw, self.spec.control
+        running = self.outcomes == int(Outcome.RUNNING)
+        commands = np.empty((self._n_cmd, self.n, 3), dtype=np.float32)
+        for w in range(self.n):
+            drive = self._drives[w]
+            if not running[w]:
+                # A finished world keeps its last wheel command until its next episode: stopped
+                # wheels on Warp's Newton solver turn the state into NaN (module doc).
+                commands[:, w] = body_twist(drive.last) if self._planar else drive.last
+                continue
+            if self._continuous:
+                plan = drive.plan_twist(
+                    _twist(actions[w], self.spec), control.decision_period, control.command_period,
+                    control.max_accel,
+                )  # fmt: skip
+            else:
+                plan = drive.plan(
+                    _checked_action(actions[w]), control.speed, control.decision_period,
+                    control.command_period, control.max_accel,
+                )  # fmt: skip
+            commands[:, w] = body_twist(plan) if self._planar else plan
+        with wp.ScopedDevice(self.device):
+            self._commands.assign(commands)
+            for k in range(self._n_cmd):
+                wp.launch(self._command, dim=self.n, inputs=[
+                    self._commands, k, int(self._planar), self._dw.qpos, self._qposadr + 2,
+                    float(control.command_period), self._ctrl_start, self._dw.ctrl,
+                ])  # fmt: skip
+                for _ in range(self._substeps):
+                    mjw.step(self._mw, self._dw)
+                self._decide(end_of_decision=False)
+            mjw.forward(self._mw, self._dw)
+            self._decide(end_of_decision=True)
+            outcomes = self._outcome_w.numpy()
+        self.steps[running] += 1
+        timeout = running & (outcomes == int(Outcome.RUNNING)) & (self.steps >= self.spec.step_budget)
+        outcomes[timeout] = int(Outcome.TIMEOUT)
+        if timeout.any():
+            self._outcome_w.assign(outcomes)
+        self.outcomes = outcomes.astype(np.int32)
+        self._sense()
+
+    def _decide(self, end_of_decision: bool) -> None:
+        wp, dw = self._wp, self._dw
+        if int(dw.nacon.numpy()[0]) > dw.naconmax:
+            raise RuntimeError(
+                f"{int(dw.nacon.numpy()[0])} contacts over the {dw.naconmax} buffered for {self.n} worlds: "
+                "raise contacts_per_world"
+            )
+        self._touched.zero_()
+        wp.launch(self._touches, dim=dw.naconmax, inputs=[dw.nacon, dw.contact.geom, dw.contact.worldid,
+                                                     self._ground, self._touched])  # fmt: skip
+        wp.launch(
+            self._judge,
+            dim=self.n,
+            inputs=[
+                self._touched, dw.xpos, dw.xmat, dw.qpos, self._base, self._target_w,
+                float(self.spec.arena.target_radius), self._start_z_w, float(UPRIGHT), float(AIRBORNE),
+                int(end_of_decision), self._outcome_w,
+            ],
+        )  # fmt: skip
+
+    # -- sensing -----------------------------------------------------------------------
+
+    def _sense(self) -> None:
+        """Casts every world's rays and builds its observation (the task's keys that a
+        trajectory and a policy on phi(s) read)."""
+        wp, mjw, dw, spec = self._wp, self._mjw, self._dw, self.spec
+        # A finished world's state no longer matters and may have gone non-finite (module doc): read
+        # as zeros, so that no NaN reaches the numpy code below.
+        qpos = np.nan_to_num(dw.qpos.numpy().astype(np.float64))
+        origin = np.nan_to_num(dw.site_xpos.numpy()[:, self._origin].astype(np.float64))
+        a = self._qposadr
+        x, y = qpos[:, a], qpos[:, a + 1]
+        if self._planar:  # slide x, slide y, hinge yaw
+            yaw = qpos[:, a + 2]
+        else:  # a free joint
+            qw, qx, qy, qz = (qpos[:, a + i] for i in range(3, 7))
+            yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        world = self._angles[None, :] + yaw[:, None]
+        to_target = self._targets - origin[:, :2]
+        target_distance = np.hypot(to_target[:, 0], to_target[:, 1])
+        vec = np.zeros((self.n, self._angles.size + 1, 3))
+        vec[:, :-1, 0], vec[:, :-1, 1] = np.cos(world), np.sin(world)
+        vec[:, -1, :2] = to_target / np.maximum(target_distance, 1e-9)[:, None]
+        with wp.ScopedDevice(self.device):
+            self._ray_pnt.assign(np.repeat(origin[:, None, :], vec.shape[1], axis=1).astype(np.float32))
+            self._ray_vec.assign(vec.astype(np.float32))
+            world_only = wp.types.vector(6, dtype=float)(1, 0, 0, 0, 0, 0)  # geom group 0, as mj_multiRay
+            mjw.rays(
+                self._mw, dw, self._ray_pnt, self._ray_vec, world_only, True, self._ray_exclude,
+                self._ray_dist, self._ray_geom, self._ray_normal,
+            )  # fmt: skip
+            dist = self._ray_dist.numpy().astype(np.float64)
+            geom = self._ray_geom.numpy()
+        sensing = spec.sensing
+        ranges, rays, wall = sensor_readings(
+            dist[:, :-1],
+            geom[:, :-1],
+            self._wall_mask,
+            spec.robot.rays_per_sensor,
+            sensing.range,
+            BODY_RADIUS,
+        )
+        blocked = (geom[:, -1] >= 0) & (dist[:, -1] < target_distance)
+        visible = (target_distance - BODY_RADIUS <= sensing.range) & ~blocked
+        bearing = np.arctan2(to_target[:, 1], to_target[:, 0]) - yaw
+        danger = features.danger_levels(ranges, sensing.range, sensing.danger7_clearance)
+        phi = features.state_features(danger, wall, features.target_region(bearing), visible)
+        width, height = spec.arena.size
+        pose = np.column_stack([np.clip(x, 0.0, width), np.clip(y, 0.0, height), yaw])
+        self.observation = {
+            "features": phi,
+            "ranges": np.minimum(ranges, sensing.range),
+            "rays": np.minimum(rays, sensing.range),
+            "danger": danger,
+            "wall": wall.astype(np.int8),
+            "pose": pose,
+            "target": self._targets.copy(),
+            "target_distance": target_distance[:, None],
+            "target_bearing": (math.pi - (math.pi - bearing) % (2 * math.pi))[:, None],
+            "outcome": self.outcomes[:, None].copy(),
+            "steps": self.steps[:, None].astype(np.int32),
+        }
+
+    def world_observation(self, w: int) -> dict[str, np.ndarray]:
+        """World ``w``'s observation, as the dm_env task's dict (the keys of :attr:`observation`)."""
+        return {key: value[w] for key, value in self.observation.items()}
+
+    # -- rollouts ----------------------------------------------------------------------
+
+    def rollouts(self, agent: Any, seeds: Sequence[int]) -> list[Trajectory]:
+        """Drives ``agent`` once in the arena of each seed, ``self.n`` episodes at a time (a world
+        that finishes starts the next seed): the trajectories, in the order of ``seeds``.
+
+        The agent must act on phi(s) alone (``agent.acts_on_features``: the reference policies,
+        a learner's network), since one agent drives every world at once."""
+        if not getattr(agent, "acts_on_features", False):
+            raise ValueError(
+                f"the warp backend drives agents that act on phi(s) alone (reference policies, learners' "
+                f"networks); {getattr(agent, 'kind', type(agent).__name__)} reads more: use the cpu backend"
+            )
+        seeds = [int(s) for s in seeds]
+        spec, period = self.spec, self.spec.control.decision_period
+        out: list[Trajectory | None] = [None] * len(seeds)
+        recorders = [TrajectoryRecorder(period, spec.control.actions) for _ in range(self.n)]
+        episode = np.full(self.n, -1, dtype=np.int64)  # index into seeds, -1: idle
+        todo = iter(range(len(seeds)))
+
+        def start(worlds: list[int]) -> None:
+            pairs = [(w, i) for w, i in zip(worlds, todo, strict=False)]
+            if not pairs:
+                return
+            self.reset([w for w, _ in pairs], [seeds[i] for _, i in pairs])
+            for w, i in pairs:
+                episode[w] = i
+                timestep = _timestep(self.world_observation(w), first=True)
+                agent.reset(None, timestep)
+                recorders[w].start(timestep.observation)
+
+        start(list(range(self.n)))
+        while (episode >= 0).any():
+            active = np.flatnonzero(episode >= 0).tolist()
+            actions: list[Any] = [0] * self.n
+            for w in active:
+                actions[w] = agent.act(_timestep(self.world_observation(w)))
+            self.step([self.taken(a) for a in actions])
+            ended = []
+            for w in active:
+                recorders[w].step(self.recorded(actions[w]), self.world_observation(w))
+                if self.outcomes[w] != int(Outcome.RUNNING):
+                    i = int(episode[w])
+                    out[i] = recorders[w].finish(
+                        Outcome(int(self.outcomes[w])), seeds[i], spec, spec.control.speed, agent.kind
+                    )
+                    episode[w] = -1
+                    ended.append(w)
+            start(ended)
+        return out  # type: ignore[return-value]
+
+    def taken(self, action: Any) -> Any:
+        """What :meth:`step` takes for an agent's answer: on a continuous task a discrete action is
+        its continuous twin and shares become the twist (as ``sim.episode.run_episode``)."""
+        if not self._continuous:
+            return int(action)
+        return share_twist(self.recorded(action), action_scale(self.spec))
+
+    def recorded(self, action: Any) -> Any:
+        if not self._continuous:
+            return int(action)
+        return action_share(int(action)) if np.ndim(action) == 0 else np.asarray(action, np.float32)
+
+
+def _timestep(observation: dict, first: bool = False) -> dm_env.TimeStep:
+    kind = dm_env.StepType.FIRST if first else dm_env.StepType.MID
+    return dm_env.TimeStep(kind, None if first else 0.0, None if first else 1.0, observation)
+
+
+def _twist(action: Any, spec: TaskSpec) -> tuple[float, float]:
+    return _checked_twist(action, continuous_action_spec(spec))
+
+
+@functools.cache
+def _kernels():
+    """The three Warp kernels of a decision, defined once warp is imported."""
+    import warp as wp
+
+    @wp.kernel
+    def command(commands: wp.array2d(dtype=wp.vec3), k: int, planar: int, qpos: wp.array2d(dtype=float),
+                yaw_adr: int, dt: float, start: int, ctrl: wp.array2d(dtype=float)):  # fmt: skip
+        # Robot.wheel_commander: the wheel speeds, or (planar) the body twist (vx, vy, wz) turned into
+        # world-frame velocities with the yaw expected at the middle of the command period.
+        w = wp.tid()
+        c = commands[k, w]
+        if planar != 0:
+            yaw = qpos[w, yaw_adr] + 0.5 * c[2] * dt
+            cy = wp.cos(yaw)
+            sy = wp.sin(yaw)
+            c = wp.vec3(cy * c[0] - sy * c[1], sy * c[0] + cy * c[1], c[2])
+        for j in range(3):
+            ctrl[w, start + j] = c[j]
+
+    @wp.kernel
+    def touches(nacon: wp.array(dtype=int), geom: wp.array(dtype=wp.vec2i), worldid: wp.array(dtype=int),
+                ground: int, touched: wp.array(dtype=int)):  # fmt: skip
+        c = wp.tid()
+        if c >= nacon[0]:
+            return
+        g = geom[c]
+        if g[0] != ground and g[1] != ground:
+            touched[worldid[c]] = 1
+
+    @wp.kernel
+    def outcomes(touched: wp.array(dtype=int), xpos: wp.array2d(dtype=wp.vec3),
+                 xmat: wp.array2d(dtype=wp.mat33), qpos: wp.array2d(dtype=float), base: int,
+                 target: wp.array(dtype=wp.vec2), radius: float, start_z: wp.array(dtype=float),
+                 upright: float, airborne: float, end_of_decision: int,
+                 outcome: wp.array(dtype=int)):  # fmt: skip
+        # The task's _check_outcome (and, at the end of a decision, after_step's divergence check):
+        # 1 target, 2 collision, 4 physics error, as sim.task.Outcome.
+        w = wp.tid()
+        if outcome[w] != 0:
+            return
+        p = xpos[w, base]
+        diverged = xmat[w, base][2, 2] < upright or wp.abs(p[2] - start_z[w]) > airborne
+        for j in range(qpos.shape[1]):
+            if not wp.isfinite(qpos[w, j]):
+                diverged = True
+        dx = target[w][0] - p[0]
+        dy = target[w][1] - p[1]
+        arrived = wp.sqrt(dx * dx + dy * dy) <= radius
+        if touched[w] != 0 or arrived:
+            if diverged:
+                outcome[w] = 4
+            elif touched[w] != 0:
+                outcome[w] = 2
+            else:
+                outcome[w] = 1
+        elif end_of_decision != 0 and diverged:
+            outcome[w] = 4
+
+    return command, touches, outcomes

@@ -1,0 +1,158 @@
+"""The MuJoCo Warp backend (nirl_mj.sim.warp_worlds) against the dm_control task, on Warp's CPU device.
+
+No test needs a GPU. The first test of a session compiles Warp's kernels (about a minute on 2
+cores; cached on disk afterwards), so the tests share one set of worlds per task where they can.
+
+Tolerance: the backend computes in float32 where MuJoCo uses float64, so trajectories part in the
+last digits and, over a whole episode, may part further. What is held exactly: phi(s) of the first
+10 decisions of every episode (the features are quantised: a rounding moves them only when a ray
+lands within about 1e-5 m of a band edge) and every episode's outcome and length on the arenas
+below. The benchmark measures the agreement on 100 and more episodes (docs/PERFORMANCE.md).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco_warp", reason="the warp extra is not installed")
+
+from nirl_mj.experiments.backend_check import compare_with_cpu  # noqa: E402
+from nirl_mj.experiments.evaluation import evaluate  # noqa: E402
+from nirl_mj.experts.policies import PolicyAgent, rule_policy  # noqa: E402
+from nirl_mj.sim.arena import PARK_Z  # noqa: E402
+from nirl_mj.sim.rollouts import Backend, make_rollouts  # noqa: E402
+from nirl_mj.sim.spec import load_task, replace  # noqa: E402
+from nirl_mj.sim.task import Outcome, make_env  # noqa: E402
+from nirl_mj.sim.warp_worlds import WarpWorlds  # noqa: E402
+
+SEEDS = [1000, 1001, 1002, 1003]
+
+
+@pytest.fixture(scope="module")
+def worlds() -> WarpWorlds:
+    return WarpWorlds("navigate", 4, device="cpu")
+
+
+@pytest.mark.parametrize(
+    "change",
+    [{}, {"control": {"actions": "continuous"}}, {"robot": {"drive": "planar"}}],
+    ids=["discrete", "continuous", "planar"],
+)
+def test_same_arenas_and_actions_give_the_cpu_tasks_features_and_outcomes(change):
+    task = replace(load_task("navigate"), **change)
+    seeds = SEEDS[:2] if change else SEEDS
+    result = compare_with_cpu(task, seeds, worlds=len(seeds), first=10)
+    assert result["episodes"] == len(seeds)
+    assert result["same_first_features"] == len(seeds), result
+    assert result["same_outcome"] == len(seeds), result["mismatches"]
+
+
+def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
+    worlds.reset(range(4), SEEDS)
+    for _ in range(3):
+        worlds.step([0, 0, 0, 0])
+    before = worlds._dw.qpos.numpy().copy()
+    steps = worlds.steps.copy()
+    worlds.reset([2], [2024])
+    after = worlds._dw.qpos.numpy()
+    np.testing.assert_array_equal(after[[0, 1, 3]], before[[0, 1, 3]])  # the others go on untouched
+    np.testing.assert_array_equal(worlds.steps[[0, 1, 3]], steps[[0, 1, 3]])
+    assert worlds.steps[2] == 0 and worlds.outcomes[2] == Outcome.RUNNING
+    env = make_env("navigate")
+    env.random_state.seed(2024)
+    first = env.reset()
+    np.testing.assert_array_equal(worlds.observation["features"][2], first.observation["features"])
+    np.testing.assert_allclose(worlds.observation["pose"][2], first.observation["pose"], atol=1e-5)
+    model = env.physics.model.ptr
+    np.testing.assert_allclose(worlds._mw.geom_size.numpy()[2], model.geom_size, atol=1e-6)
+    used = model.body_pos[:, 2] > PARK_Z / 2  # parked slots keep whatever x, y their last arena gave
+    np.testing.assert_allclose(worlds._mw.body_pos.numpy()[2][used], model.body_pos[used], atol=1e-5)
+
+
+def test_batched_rollouts_of_the_rule_reproduce_its_cpu_success(worlds):
+    seeds = [1000, 1001, 1002, 1003, 1004, 1005]  # more seeds than worlds: finished worlds restart
+    cpu, cpu_runs = evaluate(make_env("navigate"), rule_policy, seeds, "rule")
+    warp, warp_runs = evaluate(None, rule_policy, seeds, "rule", rollouts=worlds.rollouts)
+    assert [t.arena_seed for t in warp_runs] == seeds
+    assert [t.outcome for t in warp_runs] == [t.outcome for t in cpu_runs]
+    assert warp["success_rate"] == cpu["success_rate"]
+    for a, b in zip(warp_runs, cpu_runs, strict=True):
+        n = min(10, len(a), len(b))
+        np.testing.assert_array_equal(a.features[: n + 1], b.features[: n + 1])
+        np.testing.assert_array_equal(a.actions[:n], b.actions[:n])
+
+
+def test_one_agent_reading_more_than_phi_is_refused(worlds):
+    class Planner:
+        kind = "planner"
+
+        def reset(self, env, timestep):
+            pass
+
+        def act(self, timestep):
+            return 0
+
+    with pytest.raises(ValueError, match="act on phi\\(s\\) alone.*planner.*cpu backend"):
+        worlds.rollouts(Planner(), [1])
+    assert PolicyAgent(rule_policy, "rule").acts_on_features
+
+
+@pytest.mark.parametrize(
+    ("change", "named"),
+    [
+        ({"robot": {"drive": "rollers"}}, 'robot.drive = "rollers" (accepted: "tyre", "planar")'),
+        ({"arena": {"moving_obstacles": 2}}, "arena.moving_obstacles = 2"),
+        ({"sensing": {"guide": "memory"}}, 'sensing.guide = "memory"'),
+    ],
+)
+def test_what_the_backend_does_not_simulate_is_refused_by_name(change, named):
+    task = replace(load_task("navigate"), **change)
+    with pytest.raises(ValueError, match="does not simulate") as error:
+        WarpWorlds(task, 2)
+    assert named in str(error.value)
+
+
+def test_bad_worlds_and_devices_are_refused():
+    with pytest.raises(ValueError, match="worlds must be a positive integer"):
+        WarpWorlds("navigate", 0)
+    with pytest.raises(ValueError, match="device 'tpu': accepted: cpu, cuda"):
+        WarpWorlds("navigate", 2, device="tpu")
+    with pytest.raises(ValueError, match="backend 'jax': accepted: cpu, warp"):
+        Backend("jax")
+
+
+def test_the_cpu_backend_is_todays_episode_loop():
+    env = make_env("navigate")
+    rollouts = make_rollouts(Backend("cpu"), load_task("navigate"), env)
+    again = evaluate(make_env("navigate"), rule_policy, [7, 8], "rule")[1]
+    for a, b in zip(rollouts(PolicyAgent(rule_policy, "rule"), [7, 8]), again, strict=True):
+        np.testing.assert_array_equal(a.features, b.features)
+        np.testing.assert_array_equal(a.poses, b.poses)
+
+
+def test_train_and_eval_on_the_warp_backend_from_the_command_line(tmp_path, capsys):
+    from nirl_mj.cli import main
+
+    task = tmp_path / "tiny.toml"
+    task.write_text("[control]\nstep_budget = 6\n")
+    demos = tmp_path / "demos.npz"
+    assert main(["demos", "--task", str(task), "--expert", "rule", "--episodes", "2", "--out", str(demos),
+                 "--workers", "1", "--quiet"]) == 0  # fmt: skip
+    run = tmp_path / "run"
+    warp = ["--backend", "warp", "--worlds", "3", "--device", "cpu"]
+    assert main(["train", "--task", str(task), "--demos", str(demos), "--out", str(run), "--episodes", "2",
+                 "--quiet", *warp]) == 0  # fmt: skip
+    record = json.loads((run / "run.json").read_text())
+    assert record["backend"] == {"name": "warp", "worlds": 3, "device": "cpu"}
+    assert record["iterations"] == 2
+    assert main(["train", "--out", str(run), "--resume", "--quiet", "--backend", "cpu"]) == 2
+    assert "trained on the warp backend" in capsys.readouterr().err
+    assert main(["eval", "--run", str(run), "--tests", "2", "--json", "--quiet", *warp]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["tests"] == 2 and result["backend"]["name"] == "warp"
+    assert any(key.endswith("|backend=warp") for key in json.loads((run / "eval.json").read_text()))
+    assert main(["eval", "--policy", "rule", "--tests", "1", "--quiet", "--worlds", "2"]) == 2
+    assert "--worlds and --device go with --backend warp" in capsys.readouterr().err
