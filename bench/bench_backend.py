@@ -118,6 +118,7 @@ def main() -> None:
         "same_outcome": check["same_outcome"],
         "same_first_features": check["same_first_features"],
         "same_length": check["same_length"],
+        "same_last_features": check["same_last_features"],
         "mismatches": check["mismatches"],
     }
     if not args.quick:
@@ -132,7 +133,8 @@ def main() -> None:
             f"Agreement with the CPU task on {check['episodes']} arenas (the rule's actions on the CPU "
             f"task replayed in {agreement_worlds} Warp worlds): same outcome **{check['same_outcome']}**, "
             f"same phi(s) for the first 10 decisions **{check['same_first_features']}**, same length "
-            f"{check['same_length']}; mismatches (seed, CPU, Warp): {check['mismatches'] or 'none'}."
+            f"{check['same_length']}, same final phi(s) {check['same_last_features']}; mismatches (seed, "
+            f"CPU, Warp): {check['mismatches'] or 'none'}."
         )  # fmt: skip
         write_section("MuJoCo Warp backend (bench/bench_backend.py)", body)
     if args.json:

@@ -239,3 +239,60 @@ def test_the_readme_table_of_what_each_method_reads_is_the_code_s():
             assert method_reads(BUILTIN_METHODS[name]) == words.split(", "), name
             listed.add(name)
     assert {m.name for m in load_experiment("table1").methods} <= listed
+
+
+# -- GAIL and AIRL: the task's reward and outcome never reach their training --------------------------
+
+
+def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -> dict:
+    """One PPO rollout (1,024 decisions) of ``algo`` on OPEN; with ``scrambled`` every step of the
+    environment hands out a random reward and the opposite outcome (``info``). The policy's and the
+    discriminator's weights after it."""
+    from helpers import OPEN
+    from stable_baselines3 import PPO
+
+    from nirl_mj.experiments.rl import train_rl
+    from nirl_mj.gym.env import NavigationEnv
+
+    step = NavigationEnv.step
+    rng = np.random.default_rng(5)
+
+    def scramble(self, action):
+        obs, reward, terminated, truncated, info = step(self, action)
+        outcome = SWAP.get(info["outcome"], "collision")  # a running episode reads as one that ended
+        swapped = {**info, "is_success": not info["is_success"], "outcome": outcome}
+        return obs, float(rng.normal(0.0, 10.0)), terminated, truncated, swapped
+
+    with monkeypatch.context() as patch:
+        if scrambled:
+            patch.setattr(NavigationEnv, "step", scramble)
+        out = tmp_path / f"{algo}-{scrambled}"
+        train_rl(out, OPEN, algo, 1024, seed=0, demos=demos if algo != "ppo" else None)
+    weights = {k: v.numpy() for k, v in PPO.load(out / "model.zip", device="cpu").policy.state_dict().items()}
+    if (out / "discriminator.npz").is_file():
+        with np.load(out / "discriminator.npz") as saved:
+            weights.update({f"disc_{k}": saved[k] for k in saved.files})
+    return weights
+
+
+def test_gail_and_airl_are_blind_to_the_task_reward_and_outcome(tmp_path, monkeypatch):
+    """GAIL and AIRL (with the absorbing state, which reads episode ends) end in the same policy and
+    discriminator, bit for bit, when every step's reward and outcome are scrambled; PPO on the reward
+    does not (the test can fail)."""
+    pytest.importorskip("stable_baselines3")
+    from helpers import OPEN
+
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(OPEN, ExpertConfig("rule"), episodes=2, seed=0))
+    for algo in ("gail", "airl-absorbing"):
+        same = _adversarial_run(tmp_path, algo, demos, False, monkeypatch)
+        scrambled = _adversarial_run(tmp_path, algo, demos, True, monkeypatch)
+        assert any(k.startswith("disc_") for k in same), algo
+        for key in same:
+            np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"{algo}: {key}")
+    ppo = _adversarial_run(tmp_path, "ppo", None, False, monkeypatch)
+    ppo_scrambled = _adversarial_run(tmp_path, "ppo", None, True, monkeypatch)
+    assert any(not np.array_equal(ppo[k], ppo_scrambled[k]) for k in ppo)

@@ -29,11 +29,18 @@ from nirl_mj.sim.task import Outcome, make_env  # noqa: E402
 from nirl_mj.sim.warp_worlds import WarpWorlds  # noqa: E402
 
 SEEDS = [1000, 1001, 1002, 1003]
+# The default task on a 40 m x 40 m floor with 8 obstacles (the paper's density of 20 in 100 m x
+# 100 m, doubled): episodes of about 40 decisions instead of 115, since Warp's CPU device is slow.
+# The default task itself is measured by bench/bench_backend.py (docs/PERFORMANCE.md).
+SMALL = replace(
+    load_task("navigate"), arena={"size": [40.0, 40.0], "start": [5.0, 5.0], "target": [35.0, 35.0],
+                                  "static_obstacles": 8},
+)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
 def worlds() -> WarpWorlds:
-    return WarpWorlds("navigate", 4, device="cpu")
+    return WarpWorlds(SMALL, 4, device="cpu")
 
 
 @pytest.mark.parametrize(
@@ -42,12 +49,14 @@ def worlds() -> WarpWorlds:
     ids=["discrete", "continuous", "planar"],
 )
 def test_same_arenas_and_actions_give_the_cpu_tasks_features_and_outcomes(change):
-    task = replace(load_task("navigate"), **change)
-    seeds = SEEDS[:2] if change else SEEDS
+    task = replace(SMALL, **change)
+    seeds = SEEDS[:3] if change else SEEDS
     result = compare_with_cpu(task, seeds, worlds=len(seeds), first=10)
     assert result["episodes"] == len(seeds)
     assert result["same_first_features"] == len(seeds), result
     assert result["same_outcome"] == len(seeds), result["mismatches"]
+    assert result["same_length"] == len(seeds), result
+    assert result["same_last_features"] == len(seeds), result  # an ended world's last state is the task's
 
 
 def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
@@ -61,7 +70,7 @@ def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
     np.testing.assert_array_equal(after[[0, 1, 3]], before[[0, 1, 3]])  # the others go on untouched
     np.testing.assert_array_equal(worlds.steps[[0, 1, 3]], steps[[0, 1, 3]])
     assert worlds.steps[2] == 0 and worlds.outcomes[2] == Outcome.RUNNING
-    env = make_env("navigate")
+    env = make_env(SMALL)
     env.random_state.seed(2024)
     first = env.reset()
     np.testing.assert_array_equal(worlds.observation["features"][2], first.observation["features"])
@@ -74,7 +83,7 @@ def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
 
 def test_batched_rollouts_of_the_rule_reproduce_its_cpu_success(worlds):
     seeds = [1000, 1001, 1002, 1003, 1004, 1005]  # more seeds than worlds: finished worlds restart
-    cpu, cpu_runs = evaluate(make_env("navigate"), rule_policy, seeds, "rule")
+    cpu, cpu_runs = evaluate(make_env(SMALL), rule_policy, seeds, "rule")
     warp, warp_runs = evaluate(None, rule_policy, seeds, "rule", rollouts=worlds.rollouts)
     assert [t.arena_seed for t in warp_runs] == seeds
     assert [t.outcome for t in warp_runs] == [t.outcome for t in cpu_runs]
@@ -149,10 +158,17 @@ def test_train_and_eval_on_the_warp_backend_from_the_command_line(tmp_path, caps
     assert record["backend"] == {"name": "warp", "worlds": 3, "device": "cpu"}
     assert record["iterations"] == 2
     assert main(["train", "--out", str(run), "--resume", "--quiet", "--backend", "cpu"]) == 2
-    assert "trained on the warp backend" in capsys.readouterr().err
+    assert "trained on the backend {'name': 'warp', 'worlds': 3" in capsys.readouterr().err
     assert main(["eval", "--run", str(run), "--tests", "2", "--json", "--quiet", *warp]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["tests"] == 2 and result["backend"]["name"] == "warp"
     assert any(key.endswith("|backend=warp") for key in json.loads((run / "eval.json").read_text()))
     assert main(["eval", "--policy", "rule", "--tests", "1", "--quiet", "--worlds", "2"]) == 2
     assert "--worlds and --device go with --backend warp" in capsys.readouterr().err
+
+
+def test_buffers_smaller_than_a_robot_at_rest_needs_are_refused():
+    with pytest.raises(
+        ValueError, match=r"contacts_per_world = 2: the robot at rest already needs 6; accepted"
+    ):
+        WarpWorlds(SMALL, 2, device="cpu", contacts_per_world=2)

@@ -12,7 +12,7 @@ from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
 from nirl_mj.learn.config import VARIANTS
-from nirl_mj.sim.rollouts import BACKENDS
+from nirl_mj.sim.rollouts import BACKENDS, DEVICES
 
 DESCRIPTION = "Neural inverse reinforcement learning (NIRL) for a Festo Robotino simulated in MuJoCo."
 
@@ -69,7 +69,7 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
                 default=None,
                 help="with --backend warp: worlds stepped at once (default: 64)",
             )
-            parser.add_argument("--device", choices=("cpu", "cuda"), default=None,
+            parser.add_argument("--device", choices=DEVICES, default=None,
                                 help="with --backend warp: Warp's device (default: cuda)")  # fmt: skip
         elif key == "quiet":
             parser.add_argument("--quiet", action="store_true", help="no progress bar")

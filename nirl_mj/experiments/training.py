@@ -170,14 +170,10 @@ def _train(
                     "or train in a new --out"
                 )
         if saved.get("backend") != record.get("backend"):
-            raise RunError(f"{run} was trained on the {saved.get('backend', CPU.to_dict())['name']} backend "
-                           f"({saved.get('backend', CPU.to_dict())}); resume it on the same one")  # fmt: skip
-        if saved.get("demos_sha256", record["demos_sha256"]) != record["demos_sha256"]:
-            raise RunError(
-                f"{demos_path} holds other demonstrations than {run} was trained on (content sha256 "
-                f"{record['demos_sha256'][:12]}..., the run's {saved['demos_sha256'][:12]}...); resume "
-                f"with the run's own dataset ({saved['demos']}), or train in a new --out"
-            )
+            cpu = {"name": "cpu"}
+            raise RunError(f"{run} was trained on the backend {saved.get('backend', cpu)}, this resume asks "
+                           f"for {record.get('backend', cpu)}: resume with the run's --backend, --worlds and "
+                           "--device (or none of them)")  # fmt: skip
         run.remove_leftovers()  # temporary files of a process killed while writing
         # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
         resume = run.has_checkpoint

@@ -66,7 +66,7 @@ def run_episode(
     instead of an action."""
     spec = env.task.spec
     kind = spec.control.actions
-    command = _continuous_command(spec) if kind == "continuous" else _discrete_command
+    command = action_command(spec)
     env.random_state.seed(seed)
     timestep = env.reset()
     agent.reset(env, timestep)
@@ -87,12 +87,18 @@ def run_episode(
     return recorder.finish(_outcome(timestep), seed, spec, spec.control.speed, agent.kind)
 
 
+def action_command(spec) -> Callable:
+    """``command(action) -> (what the trajectory records, what the task takes)`` for the task ``spec``:
+    the action itself on a discrete task, :func:`continuous_command`'s pair on a continuous one."""
+    return continuous_command(spec) if spec.control.actions == "continuous" else _discrete_command
+
+
 def _discrete_command(action):
     """(what the trajectory records, what the task takes) of a discrete task: the action itself."""
     return action, action
 
 
-def _continuous_command(spec) -> Callable:
+def continuous_command(spec) -> Callable:
     """``command(action) -> (float32 shares recorded, float64 twist taken)`` on a task with continuous
     actions: a discrete action 0..5 as its :func:`action_share`, two shares as they are (float32;
     beyond [-1, 1] by more than a float32 rounding, or not finite, a clear error)."""

@@ -74,8 +74,9 @@ ROBOT_IZZ = 0.5
 REST_HEIGHT = -1e-4
 
 
-def _yaw_from_quat(w: float, x: float, y: float, z: float) -> float:
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+def yaw_from_quat(w, x, y, z):
+    """Heading (radians) of the unit quaternion (w, x, y, z): floats, or elementwise arrays."""
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 class _Cache:
@@ -360,7 +361,7 @@ class Robotino(composer.Entity):
         q, a = c.qpos, c.qposadr
         if self._planar_joints:
             return np.array([q[a], q[a + 1], q[a + 2]])
-        return np.array([q[a], q[a + 1], _yaw_from_quat(q[a + 3], q[a + 4], q[a + 5], q[a + 6])])
+        return np.array([q[a], q[a + 1], yaw_from_quat(q[a + 3], q[a + 4], q[a + 5], q[a + 6])])
 
     def get_velocity(self, physics: Any) -> np.ndarray:
         """Body-frame twist ``(vx, vy, wz)`` (m/s, m/s, rad/s), shape (3,)."""

@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import dm_env
+import numpy as np
 
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.sim.episode import Agent, run_episode
@@ -24,6 +25,8 @@ from nirl_mj.sim.spec import TaskSpec
 Rollouts = Callable[[Agent, Sequence[int]], list[Trajectory]]
 
 BACKENDS = ("cpu", "warp")
+DEVICES = ("cpu", "cuda")
+"""Warp's devices: its CPU device (slow: tests) or a CUDA GPU."""
 
 
 @dataclass(frozen=True)
@@ -38,8 +41,11 @@ class Backend:
     def __post_init__(self) -> None:
         if self.name not in BACKENDS:
             raise ValueError(f"backend {self.name!r}: accepted: {', '.join(BACKENDS)}")
-        if not isinstance(self.worlds, int) or self.worlds < 1:
+        if isinstance(self.worlds, bool) or not isinstance(self.worlds, int | np.integer) or self.worlds < 1:
             raise ValueError(f"worlds must be a positive integer, got {self.worlds!r}")
+        object.__setattr__(self, "worlds", int(self.worlds))
+        if self.device not in DEVICES:
+            raise ValueError(f"device {self.device!r}: accepted: {', '.join(DEVICES)}")
 
     def to_dict(self) -> dict:
         """What a run record keeps of it (nothing is kept for ``cpu``: records stay as they were)."""

@@ -122,6 +122,20 @@ def sensor_readings(
     return ranges, rays, wall
 
 
+def target_sight(
+    hit: np.ndarray | bool,
+    dist: np.ndarray | float,
+    target_distance: np.ndarray | float,
+    body_radius: float,
+    sensing_range: float,
+) -> np.ndarray | bool:
+    """Whether the target is seen: within ``sensing_range`` of the robot's outline (``target_distance``
+    metres from its centre), and the ray towards it hits nothing (``hit``) nearer than the target
+    (``dist`` metres). Scalars or arrays of any batch shape alike."""
+    blocked = np.logical_and(hit, dist < target_distance)
+    return np.logical_and(target_distance - body_radius <= sensing_range, np.logical_not(blocked))
+
+
 class RangeSensors:
     """Casts the sensor rays for one compiled model.
 
@@ -183,8 +197,9 @@ class RangeSensors:
         ranges, rays, wall = sensor_readings(
             self._dist[:n], self._geomid[:n], self._wall_mask, self._k, self._range, self._body_radius
         )
-        blocked = self._geomid[n] >= 0 and self._dist[n] < target_distance
-        visible = target_distance - self._body_radius <= self._range and not blocked
+        visible = target_sight(
+            self._geomid[n] >= 0, self._dist[n], target_distance, self._body_radius, self._range
+        )
         bearing = float(np.arctan2(to_target[1], to_target[0]) - yaw)
         return Scan(ranges, rays, wall, bearing, target_distance, bool(visible))
 

@@ -159,7 +159,7 @@ class NavigationTask(composer.Task):
             "pose": lambda physics: observations.arena_pose(self._pose, width, height),
             "target": lambda physics: np.asarray(self._spec.arena.target, dtype=np.float64),
             "target_distance": lambda physics: np.array([min(self._scan.target_distance, diagonal)]),
-            "target_bearing": lambda physics: np.array([_wrap(self._scan.bearing)]),
+            "target_bearing": lambda physics: np.array([wrap_angle(self._scan.bearing)]),
             "outcome": lambda physics: np.array([self._outcome], dtype=np.int32),
             "steps": lambda physics: np.array([self._steps], dtype=np.int32),
         }
@@ -210,13 +210,13 @@ class NavigationTask(composer.Task):
     def before_step(self, physics, action, random_state) -> None:
         control = self._spec.control
         if self._continuous:
-            twist = _checked_twist(action, continuous_action_spec(self._spec))
+            twist = checked_twist(action, continuous_action_spec(self._spec))
             wheel_commands = self._drive.plan_twist(
                 twist, control.decision_period, control.command_period, control.max_accel
             )
         else:
             wheel_commands = self._drive.plan(
-                _checked_action(action), control.speed, control.decision_period, control.command_period,
+                checked_action(action), control.speed, control.decision_period, control.command_period,
                 control.max_accel,
             )  # fmt: skip
         checked = self.command_hook is not None or not self._nothing_within_reach()
@@ -397,12 +397,12 @@ class NavigationTask(composer.Task):
         return math.radians(self._memory.escape_bearing(pose[:2], float(pose[2])))
 
 
-def _wrap(angle: float) -> float:
-    """Angle in radians wrapped to (-pi, pi]."""
+def wrap_angle(angle):
+    """Angle in radians wrapped to (-pi, pi]: a float, or elementwise an array."""
     return math.pi - (math.pi - angle) % (2 * math.pi)
 
 
-def _checked_action(action) -> int:
+def checked_action(action) -> int:
     a = np.asarray(action)
     if a.shape != () or not np.issubdtype(a.dtype, np.integer) or not 0 <= int(a) < features.N_ACTIONS:
         raise ValueError(
@@ -433,7 +433,7 @@ def share_twist(share, scale: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(share, dtype=np.float64).reshape(-1), -1.0, 1.0) * scale
 
 
-def _checked_twist(action, bounds: specs.BoundedArray) -> tuple[float, float]:
+def checked_twist(action, bounds: specs.BoundedArray) -> tuple[float, float]:
     """A continuous action as (forward m/s, yaw rate rad/s), or a clear error. A value a float32
     rounding beyond a bound (Gymnasium and Stable-Baselines3 act in float32) counts as the bound."""
     accepted = (f"(forward speed m/s in [{bounds.minimum[0]:g}, {bounds.maximum[0]:g}], yaw rate rad/s in "

@@ -9,41 +9,45 @@ device or a GPU (``device="cuda"``). What every world does is the task's, piece 
   produced (the obstacle slots' poses, sizes and bounds as per-world model fields; qpos, qvel,
   ctrl). So both backends drive the same arena from the same state.
 - **Actions** go through the same :class:`~nirl_mj.sim.drive.DriveController` (one per world,
-  one shared plan cache) into wheel commands, one per command period (default 10 ms).
-- **Outcomes** are checked after every command period as the task checks them: a contact
-  without the floor is a collision, the base within the target radius an arrival, and either
-  comes with a divergence check (tipped over, airborne, not finite). At the end of a decision
-  the state is brought up to date (``forward``, as the task's ``after_step``), checked again,
-  and the step budget applied. A world whose outcome is decided keeps its wheel commands until
-  its next episode (the task stops stepping it; its state no longer matters), because of the
-  limitation below.
+  one shared plan cache) into wheel commands, one per command period (default 10 ms); on the
+  planar drive a kernel turns them into world-frame velocities at every period, as
+  ``Robotino.wheel_commander``.
+- **Outcomes** are checked when the task checks them: after every command period but the last
+  (the task's last check falls one physics step before the decision's end), then, once the state
+  is brought up to date at the end of the decision (``forward``, as the task's ``after_step``),
+  again with the step budget. A contact without the floor is a collision, the base within the
+  target radius an arrival, and either comes with a divergence check (tipped over, airborne, a
+  state that is not finite: Warp raises no warnings to read). A world whose outcome is decided
+  mid-decision takes one more physics step with its wheels stopped, as the task does, and is then
+  held in that state (restored after every step) until its next episode, so its last observation
+  is the task's. A world that has no episode yet (``outcomes`` -1) is held likewise.
 - **Sensing**: the nine sensors' rays and the target ray through ``mujoco_warp.rays`` (group 0
   only, as ``mj_multiRay``), then the task's own numpy code (:func:`~nirl_mj.sim.sensing.
-  sensor_readings`, :mod:`nirl_mj.data.features`) on the batch.
+  sensor_readings`, :func:`~nirl_mj.sim.sensing.target_sight`, :mod:`nirl_mj.data.features`) on
+  the batch.
 
 Contact bits are one set for all worlds in Warp: every obstacle slot is armed
 (:meth:`~nirl_mj.sim.arena.NavigationArena.arm_every_slot`); unused slots are parked far below
 the floor, as on the CPU. Warp computes in float32 where the CPU task uses float64, and its
 contact solver differs in the last digits: the two agree on phi(s) for the first decisions of
 an episode and on almost every episode's outcome, not bit for bit (``tests/test_warp_worlds.py``
-states the tolerance; ``bench/bench_backend.py`` measures it).
+states the tolerance; ``bench/bench_backend.py`` measures it). Buffers are sized per world
+(``contacts_per_world``, ``constraints_per_world``); Warp drops what overflows them, so an
+overflow that Warp flags (``Data.overflow``) raises instead of simulating without them.
 
-A limitation measured with mujoco-warp 3.17.0 (Warp 1.19, CPU device): Warp's Newton solver,
-the task's, turns this model's state into NaN within about 16 steps of the robot resting on the
-floor with its wheels stopped (the elliptic friction cones divide by a tangential slip that
-float32 rounds towards zero); MuJoCo's float64 solver does not. The conjugate-gradient solver
-stays finite but does not converge in the task's 100 iterations and drifts from the CPU
-trajectories within a few decisions, so the backend keeps Newton. A discrete action always moves
-the robot, so such a rest happens only after an episode ends (handled as above) or on a
-continuous task whose policy commands (0, 0) for long: the NaN is then caught at the end of the
-decision and the episode ends as a physics error, where the CPU task would go on.
+A limitation measured with mujoco-warp 3.17.0 (Warp 1.19, CPU device): Warp's Newton solver, the
+task's, turns this model's state into NaN within about 16 steps of the robot resting on the floor
+with its wheels stopped; MuJoCo's solver does not. The conjugate-gradient solver stays finite but
+did not converge in the task's 100 iterations and parted from the CPU trajectories within a few
+decisions, so the backend keeps Newton. A discrete action always moves the robot, and a finished
+or idle world is held (above); a continuous policy that stops the robot for long ends its episode
+as a physics error (the NaN is caught at the next check), where the CPU task would go on.
 
 Supported: the ``tyre`` drive (the task's default) and the ``planar`` one (NIRL's training drive,
-``train_drive``: its world-frame commands follow the heading at every command period, in a
-kernel), discrete and continuous actions, static obstacles. Refused with a clear error: the
-``rollers`` drive (it runs, but measured on 2 arenas its many small roller contacts
-parted from the CPU task's within an episode: one arena ended in a collision where the CPU task's
-robot arrived); moving obstacles (moved in Python between periods); the memory guide
+``train_drive``), discrete and continuous actions, static obstacles. Refused with a clear error:
+the ``rollers`` drive (it runs, but measured on 2 arenas its many small roller contacts parted
+from the CPU task's within an episode: one arena ended in a collision where the CPU task's robot
+arrived); moving obstacles (moved in Python between periods); the memory guide
 (``sensing.guide = "memory"``, a per-episode Python state).
 """
 
@@ -60,19 +64,21 @@ import numpy as np
 
 from nirl_mj.data import features
 from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder
-from nirl_mj.sim.drive import BODY_RADIUS, DriveController, action_share, body_twist
-from nirl_mj.sim.sensing import ray_angles, sensor_readings
+from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim.episode import action_command
+from nirl_mj.sim.robot import yaw_from_quat
+from nirl_mj.sim.rollouts import DEVICES
+from nirl_mj.sim.sensing import ray_angles, sensor_readings, target_sight
 from nirl_mj.sim.spec import TaskSpec, load_task
 from nirl_mj.sim.task import (
     AIRBORNE,
     UPRIGHT,
     Outcome,
-    _checked_action,
-    _checked_twist,
-    action_scale,
+    checked_action,
+    checked_twist,
     continuous_action_spec,
     make_env,
-    share_twist,
+    wrap_angle,
 )
 
 ARENA_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_aabb", "geom_rbound", "geom_rgba")
@@ -83,7 +89,8 @@ _STATE_FIELDS = ("qpos", "qvel", "ctrl", "geom_xpos", "geom_xmat")
 the world once (``make_data``), not in every ``kinematics`` as MuJoCo does: the obstacle slots'
 poses, which change with every arena, are copied with the state."""
 
-DEVICES = ("cpu", "cuda")
+IDLE = -1
+""":attr:`WarpWorlds.outcomes` of a world that has not started an episode yet."""
 
 
 def unsupported(spec: TaskSpec) -> list[str]:
@@ -114,17 +121,21 @@ class WarpWorlds:
     """N worlds of one task on MuJoCo Warp; every world runs its own episode.
 
     ``task`` is a task name, file or :class:`TaskSpec`; ``worlds`` the batch size N; ``device``
-    ``"cpu"`` (Warp's CPU device: slow, for tests) or ``"cuda"``. ``contacts_per_world`` and
-    ``constraints_per_world`` size Warp's buffers (an overflow raises RuntimeError, never
-    truncates silently). The first step compiles Warp's kernels (about a minute on the CPU,
-    cached on disk afterwards).
+    ``"cuda"`` or ``"cpu"`` (Warp's CPU device: slow, for tests). ``contacts_per_world`` and
+    ``constraints_per_world`` size Warp's buffers (an overflow raises RuntimeError, never drops
+    contacts silently). The first step compiles Warp's kernels (about a minute on the CPU, cached
+    on disk afterwards).
+
+    State, per world: :attr:`seeds` (the arena of its episode), :attr:`steps` (decisions taken),
+    :attr:`outcomes` (an :class:`Outcome` value, or :data:`IDLE`) and :attr:`observation` (the
+    task's observation keys, each with a leading world axis).
     """
 
     def __init__(
         self,
         task: str | TaskSpec,
         worlds: int,
-        device: str = "cpu",
+        device: str = "cuda",
         contacts_per_world: int = 32,
         constraints_per_world: int = 160,
     ) -> None:
@@ -137,7 +148,9 @@ class WarpWorlds:
         if device not in DEVICES:
             raise ValueError(f"device {device!r}: accepted: {', '.join(DEVICES)}")
         self._wp, self._mjw = wp, mjw = _import_warp()
-        self._command, self._touches, self._judge = _kernels()
+        if device == "cuda" and not wp.is_cuda_available():
+            raise ValueError("device 'cuda': Warp sees no CUDA GPU on this machine; accepted here: cpu")
+        self._kernels = _kernels()
         self.spec, self.n, self.device = spec, int(worlds), device
         self._reference = make_env(spec)
         self._reference.reset()
@@ -154,24 +167,39 @@ class WarpWorlds:
             raise ValueError(f"the drive actuators must be three in a row, got ids {actuators.tolist()}")
         self._ctrl_start = int(actuators[0])
         self._wall_mask = np.asarray(arena.wall_mask(physics), dtype=bool)
+        at_rest = {"contacts_per_world": (contacts_per_world, self._d.ncon),
+                   "constraints_per_world": (constraints_per_world, self._d.nefc)}  # fmt: skip
+        for name, (given, least) in at_rest.items():
+            if given < least:
+                raise ValueError(
+                    f"{name} = {given}: the robot at rest already needs {least}; accepted: >= {least}"
+                )
         model = copy.deepcopy(self._m)
         arena.arm_every_slot(physics, model)
 
         control = spec.control
-        self._substeps = round(control.command_period / spec.physics_timestep)
-        self._n_cmd = round(control.decision_period / control.command_period)
-        self._continuous = control.actions == "continuous"
+        substeps = round(control.command_period / spec.physics_timestep)
+        n_cmd = round(control.decision_period / control.command_period)
+        # Physics steps of a decision after which the task checks the outcome (task._run_decision):
+        # the end of every command period but the last, and one step before the decision's end.
+        self._checks = {substeps * (k + 1) for k in range(n_cmd - 1)} | {substeps * n_cmd - 1}
+        self._substeps, self._n_cmd = substeps, n_cmd
+        self._command = action_command(spec)
         self._angles = ray_angles(spec.robot.rays_per_sensor)
         n_rays = self._angles.size + 1  # the last ray points at the target
         self._host_fields = {f: np.repeat(getattr(self._m, f)[None], self.n, axis=0) for f in ARENA_FIELDS}
         with wp.ScopedDevice(device):
             self._mw = mjw.put_model(model, batch_sizes={f: self.n for f in ARENA_FIELDS})
-            self._dw = mjw.make_data(
-                model, nworld=self.n, nconmax=contacts_per_world, njmax=constraints_per_world
+            # Every world starts as a copy of the reference's first episode, held (IDLE) until reset.
+            self._dw = mjw.put_data(
+                model, self._d, nworld=self.n, nconmax=contacts_per_world, njmax=constraints_per_world
             )
-            self._commands = wp.zeros((self._n_cmd, self.n), dtype=wp.vec3)
+            self._commands = wp.zeros((n_cmd, self.n), dtype=wp.vec3)
             self._touched = wp.zeros(self.n, dtype=int)
-            self._outcome_w = wp.zeros(self.n, dtype=int)
+            self._outcome_w = wp.full(self.n, IDLE, dtype=int)
+            self._held = wp.zeros(self.n, dtype=int)  # 1 once a finished world's final state is kept
+            self._kept_qpos = wp.zeros_like(self._dw.qpos)
+            self._kept_qvel = wp.zeros_like(self._dw.qvel)
             self._target_w = wp.zeros(self.n, dtype=wp.vec2)
             self._start_z_w = wp.zeros(self.n, dtype=float)
             self._ray_pnt = wp.zeros((self.n, n_rays), dtype=wp.vec3)
@@ -184,8 +212,8 @@ class WarpWorlds:
         self._drives = [DriveController(cache=self._plans) for _ in range(self.n)]
         self.seeds = np.full(self.n, -1, dtype=np.int64)
         self.steps = np.zeros(self.n, dtype=np.int64)
-        self.outcomes = np.full(self.n, int(Outcome.RUNNING), dtype=np.int32)
-        self._targets = np.zeros((self.n, 2))
+        self.outcomes = np.full(self.n, IDLE, dtype=np.int32)
+        self._targets = np.tile(np.asarray(task_.layout.target, dtype=np.float64), (self.n, 1))
         self._start_z = np.zeros(self.n)
         self.observation: dict[str, np.ndarray] = {}
 
@@ -204,6 +232,7 @@ class WarpWorlds:
         with wp.ScopedDevice(self.device):
             mjw.reset_data(self._mw, dw, reset=wp.array(mask, dtype=bool))
             state = {name: getattr(dw, name).numpy() for name in _STATE_FIELDS}
+            held = self._held.numpy()
             for w, seed in zip(worlds.tolist(), seeds.tolist(), strict=True):
                 self._reference.random_state.seed(seed)
                 self._reference.reset()
@@ -211,15 +240,15 @@ class WarpWorlds:
                     rows[w] = getattr(self._m, name)
                 for name, rows in state.items():
                     rows[w] = getattr(self._d, name).reshape(rows.shape[1:])
-                layout = self._reference.task.layout
-                self._targets[w] = layout.target
+                self._targets[w] = self._reference.task.layout.target
                 self._start_z[w] = self._d.xpos[self._base, 2]
                 self._drives[w].reset()
-                self.seeds[w], self.steps[w], self.outcomes[w] = seed, 0, int(Outcome.RUNNING)
+                self.seeds[w], self.steps[w], self.outcomes[w], held[w] = seed, 0, int(Outcome.RUNNING), 0
             for name, rows in self._host_fields.items():
                 getattr(self._mw, name).assign(rows)
             for name, rows in state.items():
                 getattr(dw, name).assign(rows)
+            self._held.assign(held)
             self._target_w.assign(self._targets.astype(np.float32))
             self._start_z_w.assign(self._start_z.astype(np.float32))
             self._outcome_w.assign(self.outcomes)
@@ -228,44 +257,52 @@ class WarpWorlds:
 
     def step(self, actions: Sequence[Any]) -> None:
         """One decision in every running world: ``actions[w]`` an action 0..5 (or, on a task with
-        continuous actions, the twist (forward m/s, yaw rate rad/s)); finished worlds ignore theirs.
+        continuous actions, the twist (forward m/s, yaw rate rad/s)); other worlds ignore theirs.
         Updates :attr:`outcomes`, :attr:`steps` and :attr:`observation`."""
         if len(actions) != self.n:
             raise ValueError(f"step: one action per world ({self.n}), got {len(actions)}")
-        wp, mjw, control = self._wp, self._mjw, self.spec.control
+        wp, mjw, control, kernels = self._wp, self._mjw, self.spec.control, self._kernels
         running = self.outcomes == int(Outcome.RUNNING)
-        commands = np.empty((self._n_cmd, self.n, 3), dtype=np.float32)
-        for w in range(self.n):
+        commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
+        for w in np.flatnonzero(running).tolist():
             drive = self._drives[w]
-            if not running[w]:
-                # A finished world keeps its last wheel command until its next episode: stopped
-                # wheels on Warp's Newton solver turn the state into NaN (module doc).
-                commands[:, w] = body_twist(drive.last) if self._planar else drive.last
-                continue
-            if self._continuous:
+            if self.spec.control.actions == "continuous":
+                twist = checked_twist(actions[w], continuous_action_spec(self.spec))
                 plan = drive.plan_twist(
-                    _twist(actions[w], self.spec), control.decision_period, control.command_period,
-                    control.max_accel,
-                )  # fmt: skip
+                    twist, control.decision_period, control.command_period, control.max_accel
+                )
             else:
                 plan = drive.plan(
-                    _checked_action(actions[w]), control.speed, control.decision_period,
+                    checked_action(actions[w]), control.speed, control.decision_period,
                     control.command_period, control.max_accel,
                 )  # fmt: skip
             commands[:, w] = body_twist(plan) if self._planar else plan
+        dw = self._dw
         with wp.ScopedDevice(self.device):
             self._commands.assign(commands)
-            for k in range(self._n_cmd):
-                wp.launch(self._command, dim=self.n, inputs=[
-                    self._commands, k, int(self._planar), self._dw.qpos, self._qposadr + 2,
-                    float(control.command_period), self._ctrl_start, self._dw.ctrl,
-                ])  # fmt: skip
-                for _ in range(self._substeps):
-                    mjw.step(self._mw, self._dw)
-                self._decide(end_of_decision=False)
-            mjw.forward(self._mw, self._dw)
-            self._decide(end_of_decision=True)
+            for s in range(1, self._substeps * self._n_cmd + 1):
+                if (s - 1) % self._substeps == 0:
+                    k = (s - 1) // self._substeps
+                    wp.launch(kernels.command, dim=self.n, inputs=[
+                        self._commands, k, self._outcome_w, int(self._planar), dw.qpos, self._qposadr + 2,
+                        float(control.command_period), self._ctrl_start, dw.ctrl,
+                    ])  # fmt: skip
+                mjw.step(self._mw, dw)
+                wp.launch(kernels.hold, dim=self.n, inputs=[self._outcome_w, self._held, dw.qpos, dw.qvel,
+                                                            self._kept_qpos, self._kept_qvel])  # fmt: skip
+                if s in self._checks:
+                    self._judge(end_of_decision=False)
+            mjw.forward(self._mw, dw)
+            self._judge(end_of_decision=True)
             outcomes = self._outcome_w.numpy()
+            overflow = dw.overflow.numpy() & _BUFFER_OVERFLOWS
+        if overflow.any():
+            contacts, rows = int(dw.nacon.numpy()[0]), int(dw.nefc.numpy().max())
+            raise RuntimeError(
+                f"Warp's buffers overflowed in {np.count_nonzero(overflow)} of {self.n} worlds (contacts "
+                f"{contacts} of {dw.naconmax}, constraint rows up to {rows} of {dw.njmax} a world): raise "
+                "contacts_per_world or constraints_per_world of WarpWorlds"
+            )
         self.steps[running] += 1
         timeout = running & (outcomes == int(Outcome.RUNNING)) & (self.steps >= self.spec.step_budget)
         outcomes[timeout] = int(Outcome.TIMEOUT)
@@ -274,23 +311,19 @@ class WarpWorlds:
         self.outcomes = outcomes.astype(np.int32)
         self._sense()
 
-    def _decide(self, end_of_decision: bool) -> None:
-        wp, dw = self._wp, self._dw
-        if int(dw.nacon.numpy()[0]) > dw.naconmax:
-            raise RuntimeError(
-                f"{int(dw.nacon.numpy()[0])} contacts over the {dw.naconmax} buffered for {self.n} worlds: "
-                "raise contacts_per_world"
-            )
+    def _judge(self, end_of_decision: bool) -> None:
+        """Sets the outcome of every running world whose state decides it (the task's checks)."""
+        wp, dw, kernels = self._wp, self._dw, self._kernels
         self._touched.zero_()
-        wp.launch(self._touches, dim=dw.naconmax, inputs=[dw.nacon, dw.contact.geom, dw.contact.worldid,
-                                                     self._ground, self._touched])  # fmt: skip
+        wp.launch(kernels.touches, dim=dw.naconmax, inputs=[dw.nacon, dw.contact.geom, dw.contact.worldid,
+                                                             self._ground, self._touched])  # fmt: skip
         wp.launch(
-            self._judge,
+            kernels.judge,
             dim=self.n,
             inputs=[
                 self._touched, dw.xpos, dw.xmat, dw.qpos, self._base, self._target_w,
                 float(self.spec.arena.target_radius), self._start_z_w, float(UPRIGHT), float(AIRBORNE),
-                int(end_of_decision), self._outcome_w,
+                int(end_of_decision), self._ctrl_start, self._outcome_w, dw.ctrl,
             ],
         )  # fmt: skip
 
@@ -300,8 +333,7 @@ class WarpWorlds:
         """Casts every world's rays and builds its observation (the task's keys that a
         trajectory and a policy on phi(s) read)."""
         wp, mjw, dw, spec = self._wp, self._mjw, self._dw, self.spec
-        # A finished world's state no longer matters and may have gone non-finite (module doc): read
-        # as zeros, so that no NaN reaches the numpy code below.
+        # A state that went non-finite (a physics error) reads as zeros: no NaN reaches numpy below.
         qpos = np.nan_to_num(dw.qpos.numpy().astype(np.float64))
         origin = np.nan_to_num(dw.site_xpos.numpy()[:, self._origin].astype(np.float64))
         a = self._qposadr
@@ -309,8 +341,7 @@ class WarpWorlds:
         if self._planar:  # slide x, slide y, hinge yaw
             yaw = qpos[:, a + 2]
         else:  # a free joint
-            qw, qx, qy, qz = (qpos[:, a + i] for i in range(3, 7))
-            yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+            yaw = yaw_from_quat(*(qpos[:, a + i] for i in range(3, 7)))
         world = self._angles[None, :] + yaw[:, None]
         to_target = self._targets - origin[:, :2]
         target_distance = np.hypot(to_target[:, 0], to_target[:, 1])
@@ -328,16 +359,11 @@ class WarpWorlds:
             dist = self._ray_dist.numpy().astype(np.float64)
             geom = self._ray_geom.numpy()
         sensing = spec.sensing
+        k = spec.robot.rays_per_sensor
         ranges, rays, wall = sensor_readings(
-            dist[:, :-1],
-            geom[:, :-1],
-            self._wall_mask,
-            spec.robot.rays_per_sensor,
-            sensing.range,
-            BODY_RADIUS,
+            dist[:, :-1], geom[:, :-1], self._wall_mask, k, sensing.range, BODY_RADIUS
         )
-        blocked = (geom[:, -1] >= 0) & (dist[:, -1] < target_distance)
-        visible = (target_distance - BODY_RADIUS <= sensing.range) & ~blocked
+        visible = target_sight(geom[:, -1] >= 0, dist[:, -1], target_distance, BODY_RADIUS, sensing.range)
         bearing = np.arctan2(to_target[:, 1], to_target[:, 0]) - yaw
         danger = features.danger_levels(ranges, sensing.range, sensing.danger7_clearance)
         phi = features.state_features(danger, wall, features.target_region(bearing), visible)
@@ -351,8 +377,8 @@ class WarpWorlds:
             "wall": wall.astype(np.int8),
             "pose": pose,
             "target": self._targets.copy(),
-            "target_distance": target_distance[:, None],
-            "target_bearing": (math.pi - (math.pi - bearing) % (2 * math.pi))[:, None],
+            "target_distance": np.minimum(target_distance, math.hypot(width, height))[:, None],
+            "target_bearing": wrap_angle(bearing)[:, None],
             "outcome": self.outcomes[:, None].copy(),
             "steps": self.steps[:, None].astype(np.int32),
         }
@@ -368,7 +394,8 @@ class WarpWorlds:
         that finishes starts the next seed): the trajectories, in the order of ``seeds``.
 
         The agent must act on phi(s) alone (``agent.acts_on_features``: the reference policies,
-        a learner's network), since one agent drives every world at once."""
+        a learner's network), since one agent drives every world at once. On a task with
+        continuous actions it answers with shares or a discrete action, as ``run_episode`` takes."""
         if not getattr(agent, "acts_on_features", False):
             raise ValueError(
                 f"the warp backend drives agents that act on phi(s) alone (reference policies, learners' "
@@ -378,7 +405,7 @@ class WarpWorlds:
         spec, period = self.spec, self.spec.control.decision_period
         out: list[Trajectory | None] = [None] * len(seeds)
         recorders = [TrajectoryRecorder(period, spec.control.actions) for _ in range(self.n)]
-        episode = np.full(self.n, -1, dtype=np.int64)  # index into seeds, -1: idle
+        episode = np.full(self.n, -1, dtype=np.int64)  # index into seeds, -1: no episode
         todo = iter(range(len(seeds)))
 
         def start(worlds: list[int]) -> None:
@@ -393,15 +420,16 @@ class WarpWorlds:
                 recorders[w].start(timestep.observation)
 
         start(list(range(self.n)))
+        idle = self._command(0)[1]  # what a world without an episode is handed (ignored)
         while (episode >= 0).any():
             active = np.flatnonzero(episode >= 0).tolist()
-            actions: list[Any] = [0] * self.n
+            taken, recorded = [idle] * self.n, {}
             for w in active:
-                actions[w] = agent.act(_timestep(self.world_observation(w)))
-            self.step([self.taken(a) for a in actions])
+                recorded[w], taken[w] = self._command(agent.act(_timestep(self.world_observation(w))))
+            self.step(taken)
             ended = []
             for w in active:
-                recorders[w].step(self.recorded(actions[w]), self.world_observation(w))
+                recorders[w].step(recorded[w], self.world_observation(w))
                 if self.outcomes[w] != int(Outcome.RUNNING):
                     i = int(episode[w])
                     out[i] = recorders[w].finish(
@@ -412,41 +440,41 @@ class WarpWorlds:
             start(ended)
         return out  # type: ignore[return-value]
 
-    def taken(self, action: Any) -> Any:
-        """What :meth:`step` takes for an agent's answer: on a continuous task a discrete action is
-        its continuous twin and shares become the twist (as ``sim.episode.run_episode``)."""
-        if not self._continuous:
-            return int(action)
-        return share_twist(self.recorded(action), action_scale(self.spec))
-
-    def recorded(self, action: Any) -> Any:
-        if not self._continuous:
-            return int(action)
-        return action_share(int(action)) if np.ndim(action) == 0 else np.asarray(action, np.float32)
-
 
 def _timestep(observation: dict, first: bool = False) -> dm_env.TimeStep:
     kind = dm_env.StepType.FIRST if first else dm_env.StepType.MID
     return dm_env.TimeStep(kind, None if first else 0.0, None if first else 1.0, observation)
 
 
-def _twist(action: Any, spec: TaskSpec) -> tuple[float, float]:
-    return _checked_twist(action, continuous_action_spec(spec))
+_BUFFER_OVERFLOWS = 1 | 2 | 4 | 8 | 16
+"""mujoco_warp's ``OverflowType`` bits of its buffers (NEFC, NJMAX_NNZ, BROADPHASE, NARROWPHASE, CCD):
+what was dropped. The solver's iteration limits (the other bits) drop nothing."""
+
+
+class _Kernels:
+    """The Warp kernels of a decision (:func:`_kernels`)."""
+
+    def __init__(self, command, touches, judge, hold) -> None:
+        self.command, self.touches, self.judge, self.hold = command, touches, judge, hold
 
 
 @functools.cache
-def _kernels():
-    """The three Warp kernels of a decision, defined once warp is imported."""
+def _kernels() -> _Kernels:
+    """The Warp kernels of a decision, defined once warp is imported."""
     import warp as wp
 
     @wp.kernel
-    def command(commands: wp.array2d(dtype=wp.vec3), k: int, planar: int, qpos: wp.array2d(dtype=float),
-                yaw_adr: int, dt: float, start: int, ctrl: wp.array2d(dtype=float)):  # fmt: skip
+    def command(commands: wp.array2d(dtype=wp.vec3), k: int, outcome: wp.array(dtype=int), planar: int,
+                qpos: wp.array2d(dtype=float), yaw_adr: int, dt: float, start: int,
+                ctrl: wp.array2d(dtype=float)):  # fmt: skip
         # Robot.wheel_commander: the wheel speeds, or (planar) the body twist (vx, vy, wz) turned into
-        # world-frame velocities with the yaw expected at the middle of the command period.
+        # world-frame velocities with the yaw expected at the middle of the command period. A world
+        # without a running episode gets stopped wheels.
         w = wp.tid()
         c = commands[k, w]
-        if planar != 0:
+        if outcome[w] != 0:
+            c = wp.vec3(0.0, 0.0, 0.0)
+        elif planar != 0:
             yaw = qpos[w, yaw_adr] + 0.5 * c[2] * dt
             cy = wp.cos(yaw)
             sy = wp.sin(yaw)
@@ -457,6 +485,7 @@ def _kernels():
     @wp.kernel
     def touches(nacon: wp.array(dtype=int), geom: wp.array(dtype=wp.vec2i), worldid: wp.array(dtype=int),
                 ground: int, touched: wp.array(dtype=int)):  # fmt: skip
+        # The task's _in_collision: any contact without the floor (wheels touch it through pairs only).
         c = wp.tid()
         if c >= nacon[0]:
             return
@@ -465,13 +494,13 @@ def _kernels():
             touched[worldid[c]] = 1
 
     @wp.kernel
-    def outcomes(touched: wp.array(dtype=int), xpos: wp.array2d(dtype=wp.vec3),
-                 xmat: wp.array2d(dtype=wp.mat33), qpos: wp.array2d(dtype=float), base: int,
-                 target: wp.array(dtype=wp.vec2), radius: float, start_z: wp.array(dtype=float),
-                 upright: float, airborne: float, end_of_decision: int,
-                 outcome: wp.array(dtype=int)):  # fmt: skip
+    def judge(touched: wp.array(dtype=int), xpos: wp.array2d(dtype=wp.vec3),
+              xmat: wp.array2d(dtype=wp.mat33), qpos: wp.array2d(dtype=float), base: int,
+              target: wp.array(dtype=wp.vec2), radius: float, start_z: wp.array(dtype=float),
+              upright: float, airborne: float, end_of_decision: int, start: int,
+              outcome: wp.array(dtype=int), ctrl: wp.array2d(dtype=float)):  # fmt: skip
         # The task's _check_outcome (and, at the end of a decision, after_step's divergence check):
-        # 1 target, 2 collision, 4 physics error, as sim.task.Outcome.
+        # 1 target, 2 collision, 4 physics error, as sim.task.Outcome. A decided world's wheels stop.
         w = wp.tid()
         if outcome[w] != 0:
             return
@@ -483,14 +512,41 @@ def _kernels():
         dx = target[w][0] - p[0]
         dy = target[w][1] - p[1]
         arrived = wp.sqrt(dx * dx + dy * dy) <= radius
+        decided = 0
         if touched[w] != 0 or arrived:
             if diverged:
-                outcome[w] = 4
+                decided = 4
             elif touched[w] != 0:
-                outcome[w] = 2
+                decided = 2
             else:
-                outcome[w] = 1
+                decided = 1
         elif end_of_decision != 0 and diverged:
-            outcome[w] = 4
+            decided = 4
+        if decided != 0:
+            outcome[w] = decided
+            for j in range(3):
+                ctrl[w, start + j] = 0.0
 
-    return command, touches, outcomes
+    @wp.kernel
+    def hold(outcome: wp.array(dtype=int), held: wp.array(dtype=int), qpos: wp.array2d(dtype=float),
+             qvel: wp.array2d(dtype=float), kept_qpos: wp.array2d(dtype=float),
+             kept_qvel: wp.array2d(dtype=float)):  # fmt: skip
+        # After each physics step: a world without a running episode keeps the state of its first step
+        # with stopped wheels (the task's last step of a decided episode), restored after every later
+        # one. So its final observation is the task's, and it never rests long enough to go NaN.
+        w = wp.tid()
+        if outcome[w] == 0:
+            return
+        if held[w] == 0:
+            for j in range(qpos.shape[1]):
+                kept_qpos[w, j] = qpos[w, j]
+            for j in range(qvel.shape[1]):
+                kept_qvel[w, j] = qvel[w, j]
+            held[w] = 1
+        else:
+            for j in range(qpos.shape[1]):
+                qpos[w, j] = kept_qpos[w, j]
+            for j in range(qvel.shape[1]):
+                qvel[w, j] = kept_qvel[w, j]
+
+    return _Kernels(command, touches, judge, hold)
