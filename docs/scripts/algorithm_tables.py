@@ -152,11 +152,15 @@ DEPARTURES: tuple[Departure, ...] = (
         "on rewards scaled into [0, 1 - gamma] every step pays, so an end worth 0 makes ending the worst "
         "thing a policy can do and it circles; a fixed value for an arrival would read the task's outcome",
         (
+            Ablation(
+                "information_budget",
+                "NIRL-outcome",
+                "NIRL",
+                note="the task's outcome instead: an arrival worth 1, other ends 0; development arenas",
+            ),
             Unstored(
-                "not ablated in a stored experiment (one run with every end worth 0, 2026-11-26: "
-                'docs/notebook/algorithm.md, "One information budget"); the outcome added back is '
-                "`tasks/ablations/information_budget.toml`, not yet run",
-                "`nirl-mj compare --task tasks/ablations/information_budget.toml`",
+                "every end worth 0: one run, no stored result (2026-11-26: "
+                'docs/notebook/algorithm.md, "One information budget")'
             ),
         ),
     ),
@@ -225,6 +229,12 @@ DEPARTURES: tuple[Departure, ...] = (
         "per-action recall does not",
         (
             Ablation("table1_fair", "NIRL-last", "NIRL", note="the last iterate, no selection"),
+            Ablation(
+                "information_budget",
+                "NIRL-validation",
+                "NIRL",
+                note="success on 40 validation arenas instead, which reads the task; development arenas",
+            ),
             Unstored(f"plain accuracy: ablated post hoc at the default {FIRST}, 5 runs, no stored result"),
         ),
     ),

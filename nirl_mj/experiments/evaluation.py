@@ -35,6 +35,8 @@ def evaluate(
     ``rollouts`` runs them on another backend (:mod:`nirl_mj.sim.rollouts`; then ``env`` is unused
     and ``on_episode`` is called once they all ended)."""
     agent = policy if hasattr(policy, "act") else PolicyAgent(policy, name)
+    if env is None and rollouts is None:
+        raise ValueError("evaluate needs an environment (the cpu backend) or rollouts (another backend)")
     if rollouts is not None:
         trajectories = rollouts(agent, list(seeds))
         for trajectory in trajectories:
