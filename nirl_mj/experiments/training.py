@@ -169,6 +169,12 @@ def _train(
                     f"{run} was trained with another {key}; resume with the same options, "
                     "or train in a new --out"
                 )
+        if saved.get("demos_sha256", record["demos_sha256"]) != record["demos_sha256"]:
+            raise RunError(
+                f"{demos_path} holds other demonstrations than {run} was trained on (content sha256 "
+                f"{record['demos_sha256'][:12]}..., the run's {saved['demos_sha256'][:12]}...); resume "
+                f"with the run's own dataset ({saved['demos']}), or train in a new --out"
+            )
         if saved.get("backend") != record.get("backend"):
             cpu = {"name": "cpu"}
             raise RunError(f"{run} was trained on the backend {saved.get('backend', cpu)}, this resume asks "

@@ -21,12 +21,12 @@ import numpy as np
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.sim.episode import Agent, run_episode
 from nirl_mj.sim.spec import TaskSpec
+from nirl_mj.sim.task import make_env
+from nirl_mj.sim.warp_worlds import DEVICES, WarpWorlds
 
 Rollouts = Callable[[Agent, Sequence[int]], list[Trajectory]]
 
 BACKENDS = ("cpu", "warp")
-DEVICES = ("cpu", "cuda")
-"""Warp's devices: its CPU device (slow: tests) or a CUDA GPU."""
 
 
 @dataclass(frozen=True)
@@ -66,9 +66,5 @@ def make_rollouts(backend: Backend, task: TaskSpec, env: dm_env.Environment | No
     ``task`` when not given). The ``warp`` backend's worlds are built once, here (a minute of kernel
     compilation the first time on a machine)."""
     if backend.name == "cpu":
-        from nirl_mj.sim.task import make_env
-
         return cpu_rollouts(env if env is not None else make_env(task))
-    from nirl_mj.sim.warp_worlds import WarpWorlds
-
     return WarpWorlds(task, backend.worlds, backend.device).rollouts

@@ -67,7 +67,6 @@ from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder
 from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
 from nirl_mj.sim.episode import action_command
 from nirl_mj.sim.robot import yaw_from_quat
-from nirl_mj.sim.rollouts import DEVICES
 from nirl_mj.sim.sensing import ray_angles, sensor_readings, target_sight
 from nirl_mj.sim.spec import TaskSpec, load_task
 from nirl_mj.sim.task import (
@@ -88,6 +87,9 @@ _STATE_FIELDS = ("qpos", "qvel", "ctrl", "geom_xpos", "geom_xmat")
 """Data fields a world's start copies from the reference. Warp computes the poses of geoms fixed to
 the world once (``make_data``), not in every ``kinematics`` as MuJoCo does: the obstacle slots'
 poses, which change with every arena, are copied with the state."""
+
+DEVICES = ("cpu", "cuda")
+"""Warp's devices: its CPU device (slow: tests) or a CUDA GPU."""
 
 IDLE = -1
 """:attr:`WarpWorlds.outcomes` of a world that has not started an episode yet."""
