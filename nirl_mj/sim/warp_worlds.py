@@ -266,10 +266,11 @@ class WarpWorlds:
         wp, mjw, control, kernels = self._wp, self._mjw, self.spec.control, self._kernels
         running = self.outcomes == int(Outcome.RUNNING)
         commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
+        bounds = continuous_action_spec(self.spec) if control.actions == "continuous" else None
         for w in np.flatnonzero(running).tolist():
             drive = self._drives[w]
-            if self.spec.control.actions == "continuous":
-                twist = checked_twist(actions[w], continuous_action_spec(self.spec))
+            if bounds is not None:
+                twist = checked_twist(actions[w], bounds)
                 plan = drive.plan_twist(
                     twist, control.decision_period, control.command_period, control.max_accel
                 )
