@@ -326,3 +326,33 @@ def test_ppo_on_continuous_actions_trains_in_the_normalised_space_and_acts_in_th
     env = make_env(from_dict(record["task"], "record"), seed=0)
     env.reset()
     env.step(twist)  # the task takes it: within its bounds
+
+
+def test_validation_selection_drives_every_checkpoint_on_the_same_validation_arenas(tmp_path, monkeypatch):
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.experiments.seeds import domain_seed
+    from nirl_mj.sim.task import make_env
+
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    run = tmp_path / "run"
+    changes = {"lr_schedule": "linear", "target_kl": 0.05}
+    record = rl.train_rl(run, OPEN, "ppo", 1024, seed=3, checkpoint_every=512, envs=2,
+                         selection="validation_success", changes=changes)  # fmt: skip
+    assert record["validation_seeds"] == [domain_seed("validation", 3, k) for k in range(3)]
+    assert "task_success_selection" in record["reads"] and record["config"]["lr_schedule"] == "linear"
+    assert [s["steps"] for s in record["scores"]] == [512, 1024]
+    # each score is the saved checkpoint's success, driven as the tests drive it, on those arenas
+    env = make_env(OPEN)
+    for name, entry in ((record["selected"]["file"], record["selected"]), ("model.zip", record["scores"][-1])):
+        model = sb3.PPO.load(run / name, device="cpu")
+        policy = rl._actor(model, record, sampled=True, seed=3, shares=True)
+        assert evaluate(env, policy, record["validation_seeds"])[0]["success_rate"] == entry["score"]
+    # the learning rate decays linearly to 0 at the run's last decision; the saved model keeps it
+    model = sb3.PPO.load(run / "model.zip", device="cpu")
+    assert model.lr_schedule(1.0) == pytest.approx(3e-4) and model.lr_schedule(0.0) == 0.0
+    assert model.target_kl == 0.05
+    with pytest.raises(ValueError, match="settings.lr_schedule = 'cosine': accepted: constant, linear"):
+        rl.tuned("ppo", {"lr_schedule": "cosine"})

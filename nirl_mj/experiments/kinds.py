@@ -66,7 +66,7 @@ def _rl(job, train: bool) -> Trained:
         ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
                           m.settings)  # fmt: skip
     policy, record = load_rl_policy(job.run_dir, shares=True)
-    return Trained(policy, frozenset(record["train_seeds"]))
+    return Trained(policy, frozenset(record["train_seeds"]) | frozenset(record.get("validation_seeds", [])))
 
 
 def _dagger(job, train: bool) -> Trained:

@@ -60,7 +60,7 @@ def rl_reads(algo: str, selection: str = "last") -> list[str]:
     among its checkpoints by it (``experiments.rl.SELECTIONS``)."""
     words = {"features", "episode_end"}
     words |= {"task_reward", "task_outcome"} if algo in ("ppo", "dqn") else {"demonstrations"}
-    if selection == "training_success":
+    if selection in ("training_success", "validation_success"):
         words.add("task_success_selection")
     return _ordered(words)
 

@@ -71,13 +71,18 @@ for _kind in ADVERSARIAL:  # the policy learner is PPO, with the RL reference's 
     SETTINGS[_kind] = dict(SETTINGS["ppo"])
 """Each algorithm's settings (recorded in the run; a resume must use the same)."""
 
-SELECTIONS = ("last", "demo_balanced", "training_success")
+SELECTIONS = ("last", "demo_balanced", "training_success", "validation_success")
 """How a run chooses the policy it hands to tests among its checkpoints: ``last`` (the last
 checkpoint); ``demo_balanced``, the paper's rule as NIRL uses it (the greedy action's balanced
 accuracy on the demonstrations; GAIL and AIRL, which read them anyway); ``training_success``, the
 task's success over the last :data:`SUCCESS_WINDOW` training episodes that ended before the
-checkpoint (every one on a fresh arena; PPO and DQN, which read the task's reward anyway; recorded
-as ``task_success_selection``). The best score wins, the later checkpoint on a tie."""
+checkpoint (every one on a fresh arena); ``validation_success``, the checkpoint's own success, as
+the tests drive it, on the same :data:`VALIDATION_ARENAS` arenas of the validation domain at every
+checkpoint (paired: the same arenas and the same sampling stream). The last two read the task's
+success (recorded as ``task_success_selection``): for PPO and DQN, which read its reward anyway.
+The best score wins, the later checkpoint on a tie."""
+VALIDATION_ARENAS = 20
+"""Arenas of the validation domain that ``validation_success`` drives every checkpoint on."""
 SUCCESS_WINDOW = 30
 """Training episodes that ``training_success`` scores a checkpoint on (about the episodes of 5,000
 decisions, one checkpoint's span, at Table I's 20 obstacles)."""
@@ -94,9 +99,13 @@ def default_selection(algo: str) -> str:
 
 TUNABLE = {"learning_rate": (float, 0.0, None), "n_epochs": (int, 1, None), "batch_size": (int, 2, None),
            "ent_coef": (float, None, None), "clip_range": (float, 0.0, None), "gae_lambda": (float, 0.0, 1.0),
-           "gamma": (float, 0.0, 1.0)}  # fmt: skip
+           "gamma": (float, 0.0, 1.0), "target_kl": (float, 0.0, None)}  # fmt: skip
 """PPO's settings an experiment may change (``[method.NAME] settings = {...}``): (type, lowest, highest);
-a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0."""
+a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0; and the words of
+:data:`CHOICES`."""
+CHOICES = {"lr_schedule": ("constant", "linear")}
+"""PPO's settings that take a word: ``lr_schedule`` ``linear`` decays ``learning_rate`` linearly to 0
+at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`` keeps it."""
 CHECKPOINT_EVERY = 5_000
 """Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
@@ -108,8 +117,13 @@ def tuned(algo: str, changes: dict) -> dict:
         raise ValueError("settings apply to PPO and its adversarial learners, not dqn")
     out = {}
     for key, value in changes.items():
+        if key in CHOICES:
+            if value not in CHOICES[key]:
+                raise ValueError(f"settings.{key} = {value!r}: accepted: {', '.join(CHOICES[key])}")
+            out[key] = value
+            continue
         if key not in TUNABLE:
-            raise ValueError(f"settings.{key}: accepted: {', '.join(TUNABLE)}")
+            raise ValueError(f"settings.{key}: accepted: {', '.join([*TUNABLE, *CHOICES])}")
         kind, low, high = TUNABLE[key]
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
@@ -208,6 +222,34 @@ def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
     return score
 
 
+def _model_settings(config: dict) -> dict:
+    """The keyword arguments of the algorithm's constructor from a run's config: its own keys
+    dropped, ``lr_schedule`` turned into the learning rate's schedule."""
+    own = ("algo", "selection", "envs", "discriminator", "lr_schedule")
+    settings = {k: v for k, v in config.items() if k not in own}
+    if config.get("lr_schedule") == "linear":
+        from stable_baselines3.common.utils import LinearSchedule
+
+        settings["learning_rate"] = LinearSchedule(settings["learning_rate"], 0.0, 1.0)
+    return settings
+
+
+def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int) -> Callable[[], float]:
+    """The checkpoint's success on the run's validation arenas, driven as the tests drive it
+    (selection validation_success): the same arenas and the same sampling stream every time."""
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.sim.task import make_env
+
+    env = make_env(task)
+
+    def score() -> float:
+        policy = _actor(model, record, sampled=True, seed=seed, shares=True)
+        metrics, _ = evaluate(env, policy, record["validation_seeds"], name="validation")
+        return float(metrics["success_rate"])
+
+    return score
+
+
 @writes("training")  # one writer at a time
 def train_rl(
     run_dir: str | os.PathLike,
@@ -260,7 +302,9 @@ def train_rl(
         config["discriminator"] = adv.variant_of(algo).settings()
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
-              "demo_seeds": sorted({t.arena_seed for t in trajectories}), "validation_seeds": [],
+              "demo_seeds": sorted({t.arena_seed for t in trajectories}),
+              "validation_seeds": [domain_seed("validation", seed, k) for k in range(VALIDATION_ARENAS)]
+              if selection == "validation_success" else [],
               "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo, selection)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
     if resume:
@@ -290,7 +334,7 @@ def train_rl(
             reward.load_state(adv.read_discriminator(run))
         venv = adv.reward_wrapper(venv, reward)
         callbacks.append(adv.training_callback(venv, reward))
-    settings = {k: v for k, v in config.items() if k not in ("algo", "selection", "envs", "discriminator")}
+    settings = _model_settings(config)
     if resume and run.file(MODEL_FILE).is_file():
         model = cls.load(run.model_file(), env=venv, device="cpu")
     else:
@@ -298,7 +342,9 @@ def train_rl(
     if adversarial:
         reward.policy = model.policy
     done_before = list(record["train_seeds"])
-    demo_score = _demo_scorer(model, trajectories) if selection == "demo_balanced" else None
+    scorer = _demo_scorer(model, trajectories) if selection == "demo_balanced" else None
+    if selection == "validation_success":
+        scorer = _validation_scorer(model, record, task, seed)
 
     def checkpoint(outcomes: list[bool]) -> None:
         """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
@@ -309,8 +355,8 @@ def train_rl(
         steps_now = int(model.num_timesteps)
         best = record.get("selected")
         score = None
-        if demo_score is not None:
-            score = demo_score()
+        if scorer is not None:
+            score = scorer()
         elif selection == "training_success" and outcomes:
             score = float(np.mean(outcomes))
         replaced = None
@@ -441,6 +487,13 @@ def load_rl_policy(
     if policy == "selected" and "selected" in record:  # runs before 2026-11-26's review: selected.zip
         chosen = record["selected"].get("file", SELECTED_MODEL_FILE)
     model = _algorithm(record["algo"]).load(run.model_file(chosen), device="cpu")
+    return _actor(model, record, sampled, seed, shares), record
+
+
+def _actor(
+    model: Any, record: dict, sampled: bool, seed: int, shares: bool
+) -> Callable[[np.ndarray], int | np.ndarray]:
+    """``model``'s policy on phi(s) as :func:`load_rl_policy` describes it."""
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )
@@ -455,7 +508,7 @@ def load_rl_policy(
             probs = dist.distribution.probs[0].numpy().astype(np.float64)
             return int(rng.choice(len(probs), p=probs / probs.sum()))
 
-        return sample, record
+        return sample
 
     scale = _twist_scale(model, record)
     bounds = None  # a continuous model saved before the action space was normalised acts in m/s, rad/s
@@ -473,4 +526,4 @@ def load_rl_policy(
             return np.clip(np.asarray(action, np.float64) / bounds, -1.0, 1.0).astype(np.float32)
         return action if np.ndim(action) else int(action)
 
-    return mode, record
+    return mode
