@@ -346,7 +346,8 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
     assert [s["steps"] for s in record["scores"]] == [512, 1024]
     # each score is the saved checkpoint's success, driven as the tests drive it, on those arenas
     env = make_env(OPEN)
-    for name, entry in ((record["selected"]["file"], record["selected"]), ("model.zip", record["scores"][-1])):
+    checkpoints = ((record["selected"]["file"], record["selected"]), ("model.zip", record["scores"][-1]))
+    for name, entry in checkpoints:
         model = sb3.PPO.load(run / name, device="cpu")
         policy = rl._actor(model, record, sampled=True, seed=3, shares=True)
         assert evaluate(env, policy, record["validation_seeds"])[0]["success_rate"] == entry["score"]
