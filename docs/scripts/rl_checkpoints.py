@@ -1,11 +1,12 @@
 """The selected and the last checkpoint of a compare experiment's Stable-Baselines3 rows, each on
 its run's own test arenas (the experiment's, as its cells drew them): does the selection help?
 
-    python docs/scripts/rl_checkpoints.py TASK OUT METHOD [METHOD ...] [--runs N] [--workers 2]
+    python docs/scripts/rl_checkpoints.py TASK OUT METHOD [METHOD ...] [--runs N] [--workers 2] [--mode]
 
 TASK is the experiment file and OUT its ``--out``; every run must be finished. The selected
 checkpoint's success must equal its cell's (checked: the same arenas and the same seeded sampling);
-prints, per method, each run's selected and last success (percent) and their averages.
+prints, per method, each run's selected and last success (percent) and their averages. ``--mode``
+adds the selected checkpoint driven by its policy's mode instead of samples from it.
 """
 
 from __future__ import annotations
@@ -20,16 +21,17 @@ from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.protocol import demos_path, evaluate_policy, run_jobs
 
 
-def _rates(task_file: str, out: str, method: str, run: int) -> tuple[int, float, float, float]:
-    """(run, the cell's success, the selected checkpoint's, the last's) of ``method``'s run ``run``."""
+def _rates(task_file: str, out: str, method: str, run: int, mode: bool = False) -> tuple[float | int, ...]:
+    """(run, the cell's success, the selected checkpoint's, the last's[, the selected one's mode's])
+    of ``method``'s run ``run``."""
     from nirl_mj.experiments.rl import load_rl_policy
 
     experiment = load_experiment(task_file)
     job = run_jobs(experiment, Path(out), {run: demos_path(Path(out), experiment, run)})[method, run]
     cell = json.loads((Path(out) / "cells" / f"{cell_id(method, run)}.json").read_text())["result"]
     rates = [cell["success_rate"]]
-    for which in ("selected", "last"):
-        policy, _ = load_rl_policy(job.run_dir, policy=which)
+    for which, sampled in (("selected", True), ("last", True), *((("selected", False),) if mode else ())):
+        policy, _ = load_rl_policy(job.run_dir, policy=which, sampled=sampled)
         rates.append(evaluate_policy(policy, job.task, job.test_seeds, method)["success_rate"])
     return (run, *rates)
 
@@ -41,17 +43,19 @@ def main() -> None:
     parser.add_argument("methods", nargs="+")
     parser.add_argument("--runs", type=int, default=None, help="runs 0..N-1 (default: the experiment's)")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--mode", action="store_true", help="also the selected checkpoint's mode (greedy)")
     args = parser.parse_args()
     runs = range(args.runs or load_experiment(args.task).runs)
     with ProcessPoolExecutor(args.workers) as pool:
         for method in args.methods:
-            jobs = [(args.task, args.out, method, r) for r in runs]
+            jobs = [(args.task, args.out, method, r, args.mode) for r in runs]
             rows = sorted(pool.map(_rates, *zip(*jobs, strict=True)))
-            for run, cell, selected, _ in rows:
+            for run, cell, selected, *_ in rows:
                 if selected != cell:
                     raise SystemExit(f"{method} run {run}: the selected checkpoint scores {selected}, its "
                                      f"cell {cell}: not the experiment's arenas or checkpoint")  # fmt: skip
-            for label, column in (("selected", 2), ("last", 3)):
+            columns = (("selected", 2), ("last", 3), *((("selected mode", 4),) if args.mode else ()))
+            for label, column in columns:
                 values = [round(100 * row[column]) for row in rows]
                 print(f"{method} {label}: {' '.join(map(str, values))} -> average "
                       f"{sum(100 * row[column] for row in rows) / len(rows):.1f} %")  # fmt: skip
