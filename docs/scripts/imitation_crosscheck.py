@@ -161,20 +161,6 @@ def environment(task: Any, seed: int, scale: Callable[[np.ndarray], np.ndarray])
     return DummyVecEnv([make] * ENVS), stream
 
 
-def sampled_policy(model: Any, scale: Callable[[np.ndarray], np.ndarray], seed: int) -> Callable:
-    """PPO's policy on phi(s), every action drawn from its distribution by a generator seeded
-    ``seed`` (``rl._actor`` with ``sampled=True`` for discrete PPO)."""
-    rng = np.random.default_rng(seed)
-
-    def sample(phi: np.ndarray) -> int:
-        with torch.no_grad():
-            dist = model.policy.get_distribution(torch.as_tensor(scale(phi))[None])
-        probs = dist.distribution.probs[0].numpy().astype(np.float64)
-        return int(rng.choice(len(probs), p=probs / probs.sum()))
-
-    return sample
-
-
 def on_demonstrations(model: Any, path: str, scale: Callable[[np.ndarray], np.ndarray]) -> dict[str, Any]:
     """The policy on the demonstrated states: the greedy action's balanced accuracy (our
     ``demo_balanced`` score), its mean probability of each action, and the expert's action shares."""
@@ -254,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from nirl_mj.data.atomic import write_text
     from nirl_mj.experiments.protocol import evaluate_policy
-    from nirl_mj.experiments.rl import run_config, scaled
+    from nirl_mj.experiments.rl import _actor, run_config, scaled
 
     method = METHODS[args.algo]
     job = the_job(method, args.run)
@@ -295,7 +281,10 @@ def main(argv: list[str] | None = None) -> int:
     if overlap:
         sys.exit(f"training saw test arenas {sorted(overlap)}: refusing to test")
     seeds = tuple(job.test_seeds[: args.tests] if args.tests else job.test_seeds)
-    sample = sampled_policy(model, scaled, EVAL_SEED)
+    # our loader's sampled policy on phi(s), as for a discrete PPO run of ours
+    sample = _actor(
+        model, {"algo": "ppo", "task": {"control": {"actions": "discrete"}}}, True, EVAL_SEED, True
+    )
     taken: list[int] = []
 
     def policy(phi: np.ndarray) -> int:  # the sampled policy, its actions counted
