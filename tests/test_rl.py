@@ -349,7 +349,7 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
     checkpoints = ((record["selected"]["file"], record["selected"]), ("model.zip", record["scores"][-1]))
     for name, entry in checkpoints:
         model = sb3.PPO.load(run / name, device="cpu")
-        policy = rl._actor(model, record, sampled=True, seed=3, shares=True)
+        policy = rl.model_policy(model, record, sampled=True, seed=3, shares=True)
         assert evaluate(env, policy, record["validation_seeds"])[0]["success_rate"] == entry["score"]
     # the learning rate decays linearly to 0 at the run's last decision; the saved model keeps it
     model = sb3.PPO.load(run / "model.zip", device="cpu")

@@ -240,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from nirl_mj.data.atomic import write_text
     from nirl_mj.experiments.protocol import evaluate_policy
-    from nirl_mj.experiments.rl import _actor, run_config, scaled
+    from nirl_mj.experiments.rl import model_policy, run_config, scaled
 
     method = METHODS[args.algo]
     job = the_job(method, args.run)
@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.exit(f"training saw test arenas {sorted(overlap)}: refusing to test")
     seeds = tuple(job.test_seeds[: args.tests] if args.tests else job.test_seeds)
     # our loader's sampled policy on phi(s), as for a discrete PPO run of ours
-    sample = _actor(
+    sample = model_policy(
         model, {"algo": "ppo", "task": {"control": {"actions": "discrete"}}}, True, EVAL_SEED, True
     )
     taken: list[int] = []

@@ -59,6 +59,7 @@ def _irl(job, train: bool) -> Trained:
 
 def _rl(job, train: bool) -> Trained:
     from nirl_mj.experiments.rl import ADVERSARIAL, ensure_rl_trained, load_rl_policy
+    from nirl_mj.experiments.seeds import seen_seeds
 
     m = job.method
     if train:
@@ -66,7 +67,7 @@ def _rl(job, train: bool) -> Trained:
         ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
                           m.settings)  # fmt: skip
     policy, record = load_rl_policy(job.run_dir, shares=True)
-    return Trained(policy, frozenset(record["train_seeds"]) | frozenset(record.get("validation_seeds", [])))
+    return Trained(policy, frozenset(seen_seeds(record)))
 
 
 def _dagger(job, train: bool) -> Trained:

@@ -243,7 +243,7 @@ def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int
     env = make_env(task)
 
     def score() -> float:
-        policy = _actor(model, record, sampled=True, seed=seed, shares=True)
+        policy = model_policy(model, record, sampled=True, seed=seed, shares=True)
         metrics, _ = evaluate(env, policy, record["validation_seeds"], name="validation")
         return float(metrics["success_rate"])
 
@@ -342,8 +342,10 @@ def train_rl(
     if adversarial:
         reward.policy = model.policy
     done_before = list(record["train_seeds"])
-    scorer = _demo_scorer(model, trajectories) if selection == "demo_balanced" else None
-    if selection == "validation_success":
+    scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
+    if selection == "demo_balanced":
+        scorer = _demo_scorer(model, trajectories)
+    elif selection == "validation_success":
         scorer = _validation_scorer(model, record, task, seed)
 
     def checkpoint(outcomes: list[bool]) -> None:
@@ -487,13 +489,14 @@ def load_rl_policy(
     if policy == "selected" and "selected" in record:  # runs before 2026-11-26's review: selected.zip
         chosen = record["selected"].get("file", SELECTED_MODEL_FILE)
     model = _algorithm(record["algo"]).load(run.model_file(chosen), device="cpu")
-    return _actor(model, record, sampled, seed, shares), record
+    return model_policy(model, record, sampled, seed, shares), record
 
 
-def _actor(
+def model_policy(
     model: Any, record: dict, sampled: bool, seed: int, shares: bool
 ) -> Callable[[np.ndarray], int | np.ndarray]:
-    """``model``'s policy on phi(s) as :func:`load_rl_policy` describes it."""
+    """``model``'s policy on phi(s) as :func:`load_rl_policy` describes it (``record``: its run's, or
+    any dict with the ``algo`` and the task's ``control.actions``)."""
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )
