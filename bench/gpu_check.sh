@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# The MuJoCo Warp backend's GPU check (issue 36), run on the device machine through the device tool's
+# `run`, with the parts that `python bench/gpu_pack.py` wrote here (it prints the calls):
+#   bash bench/gpu_check.sh stash   # every call but the last: keep this call's part on the machine
+#   bash bench/gpu_check.sh run     # the last: unpack every part, run bench_backend.py on the GPU
+# The run writes docs/PERFORMANCE.md's Warp section there and copies it, the JSON line and the log
+# to $OUT, which comes back. Untested on a GPU when written (no machine was lent): the first session
+# that has one finds out. GPU_CHECK_DEVICE=cpu GPU_CHECK_ARGS='--worlds 4 --quick --json' tries the
+# same steps on Warp's CPU device (with a pack for the local Python: gpu_pack.py --python 3.11).
+set -euo pipefail
+verb=${1:?stash or run}
+mkdir -p .gpu-stash
+cp .gpu/p*/part.* .gpu-stash/
+ls -l .gpu-stash
+[ "$verb" = stash ] && exit 0
+[ "$verb" = run ] || { echo "error: unknown verb $verb; accepted: stash, run" >&2; exit 2; }
+
+want=$(cat .gpu/p*/parts | head -n 1)
+have=$(ls .gpu-stash/part.* | wc -l)
+if [ "$have" != "$want" ]; then
+  echo "error: $have of $want parts on this machine (a fresh machine has lost the stash): make every call again, in a row" >&2
+  exit 3
+fi
+site=/tmp/gpu-site
+rm -rf "$site" && mkdir -p "$site"
+cat .gpu-stash/part.* | python3 -c "import sys, tarfile; tarfile.open(fileobj=sys.stdin.buffer, mode='r|xz').extractall(sys.argv[1])" "$site"
+export PYTHONPATH="$site:$PWD" MUJOCO_GL=disable  # no rendering: no EGL needed
+out=${OUT:-/tmp/gpu-out}
+mkdir -p "$out"
+{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv; python3 --version
+  python3 -c "import mujoco, warp, mujoco_warp, dm_control; print('mujoco', mujoco.__version__, 'warp', warp.__version__)"
+} 2>&1 | tee "$out/machine.txt"
+python3 bench/bench_backend.py --device "${GPU_CHECK_DEVICE:-cuda}" ${GPU_CHECK_ARGS:---json} 2>&1 | tee "$out/bench_backend.log"
+tail -n 1 "$out/bench_backend.log" > "$out/bench_backend.json"
+cp docs/PERFORMANCE.md "$out/PERFORMANCE.md"
