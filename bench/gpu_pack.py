@@ -6,10 +6,11 @@ outside itself; a call carries at most 64 MiB of the working tree. ``warp-lang``
 149 MB. This script downloads the Python 3.12 wheels of the versions installed here, unpacks them
 without what the benchmark never imports (dm_control's suite and locomotion assets, MuJoCo's
 experimental studio, Warp's tests, examples and CPU-device compiler), and writes them as one
-xz-compressed tar cut into parts of at most ``--part-mib`` MiB: ``.gpu/p1/part.01``, ``.gpu/p2/part.02``, ... (``.gpu/`` is
-git-ignored). It then prints the calls to make, one per part, each carrying its own folder: every
-call but the last only stashes its part on the machine (``bash bench/gpu_check.sh stash``), and the
-last unpacks them all and runs the benchmark (``bash bench/gpu_check.sh run``). The machine is
+xz-compressed tar cut into parts of at most ``--part-mib`` MiB: ``.gpu/p1/part.01``,
+``.gpu/p2/part.02``, ... (``.gpu/`` is git-ignored). It then prints the calls to make, one per
+part, each carrying its own folder: every call but the last only stashes its part on the machine
+(``bash bench/gpu_check.sh stash``), and the last unpacks them all and runs the benchmark
+(``bash bench/gpu_check.sh run``). The machine is
 given back 30 seconds after a call ends, and a fresh one has lost the stash: make the calls one
 right after the other.
 

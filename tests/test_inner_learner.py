@@ -103,32 +103,26 @@ def test_n_step_targets_in_the_loop_follow_the_trajectory():
     np.testing.assert_allclose(targets, [0.625, 0.75])
 
 
-def test_the_reward_ceiling_scales_rewards_into_a_fraction_of_one_minus_gamma():
-    # progress in [-1, 1] (the control's known range) maps to [0, ceiling (1 - gamma)]
-    learner = IrlLoop(
-        LearnerConfig.preset("default", reward_source="progress", gamma=0.9, reward_ceiling=0.5), demos(), 0
-    )
-    for progress, expected in ((-1.0, 0.0), (0.0, 0.025), (1.0, 0.05)):
+def test_scaled_rewards_span_zero_to_one_minus_gamma():
+    # progress in [-1, 1] (the control's known range) maps to [0, 1 - gamma]
+    learner = IrlLoop(LearnerConfig.preset("default", reward_source="progress", gamma=0.9), demos(), 0)
+    for progress, expected in ((-1.0, 0.0), (0.0, 0.05), (1.0, 0.1)):
         t = dataclasses.replace(transitions(next_action=-1, terminal=False), progress=np.array([progress]))
         rewards, spread = learner._rewards(t)
         assert rewards[0] == pytest.approx(expected) and spread == 2.0
-    # so the best reward forever is worth 0.05 / (1 - 0.9) = 0.5: half an arrival (1)
+    # so the best reward forever is worth 0.1 / (1 - 0.9) = 1: an arrival's value
 
 
-@pytest.mark.parametrize("ceiling", [0.0, 1.5, float("nan")])
-def test_the_reward_ceiling_is_a_fraction_in_zero_one(ceiling):
-    with pytest.raises(ValueError, match="reward_ceiling"):
-        LearnerConfig.preset("default", reward_ceiling=ceiling)
+def test_the_retired_reward_ceiling_loads_at_one_and_is_refused_below():
+    record = LearnerConfig().to_dict()
+    assert LearnerConfig.from_record({**record, "reward_ceiling": 1.0}) == LearnerConfig()
+    with pytest.raises(ValueError, match="reward_ceiling = 0.5: rewards scaled into"):
+        LearnerConfig.from_record({**record, "reward_ceiling": 0.5})
 
 
-def test_exploration_is_per_unit_of_the_reward_ceiling():
-    # eta 5 -> 60 over 3 iterations: 5, 32.5, 60; with a ceiling of 0.5 the Q spread halves, eta doubles
-    learner = loop(episodes=3, eta=5.0, eta_final=60.0, reward_ceiling=0.5)
-    assert learner.eta() == pytest.approx(10.0)
-    learner.iteration = 1
-    assert learner.eta() == pytest.approx(65.0)
-    learner.iteration = 2
-    assert learner.eta() == pytest.approx(120.0)
+def test_exploration_goes_linearly_from_eta_to_eta_final():
+    learner = loop(episodes=3, eta=5.0, eta_final=60.0)
+    assert [learner.eta() for learner.iteration in range(3)] == pytest.approx([5.0, 32.5, 60.0])
 
 
 def test_bearing_inputs_put_the_sectors_centre_as_cos_and_sin_in_vs_place():

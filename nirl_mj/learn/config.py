@@ -57,11 +57,7 @@ class LoopConfig:
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
     epsilon: float = float("-inf")  # stop when the reward step's margin t <= epsilon (paper: 0)
-    reward_scaling: bool = True  # rewards mapped into [0, reward_ceiling (1 - gamma)]
-    # with scaling: what the best reward earned forever is worth, sum_k gamma^k r_max, against the
-    # value of an episode's end (at most 1). At 1 circling on the best reward is worth as much as
-    # the best end; below it, ending there sooner is strictly better (docs/ALGORITHM.md)
-    reward_ceiling: float = 1.0
+    reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
     # the value of an episode's end in the targets (learn/terminal.py): "learned" (the absorbing
     # state's reward from the demonstrations' and the learner's ends) or "outcome" (an arrival
     # worth terminal_arrival_value, other ends 0: reads the task's outcome unless that value is 0,
@@ -113,8 +109,7 @@ class LoopConfig:
         _choice("pretreatment", self.pretreatment, ("none", "map"))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
-                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"),
-                reward_ceiling=(0.0, 1.0, "(]"))  # fmt: skip
+                net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
                 validation_arenas=1, validate_every=1, final_candidates=1,
                 hidden_units=1, n_step=1)  # fmt: skip
@@ -240,7 +235,6 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "bootstrap": "sarsa",
     "hidden_units": 10,
     "n_step": 1,
-    "reward_ceiling": 1.0,
     "input_bearing": False,
     "terminal_value": "outcome",
     "pretreatment": "none",
@@ -252,6 +246,12 @@ RETIRED: dict[str, tuple[Any, str]] = {
         0.0,
         "Polyak averaging of the kept policy's weights, retired on 2026-11-26: it did "
         "not pay (docs/ALGORITHM.md); commit d3ea6fe still runs it",
+    ),
+    "reward_ceiling": (
+        1.0,
+        "rewards scaled into [0, c (1 - gamma)], retired on 2026-11-27: it did not lift RE-IRL out "
+        "of its timeouts (docs/notebook/algorithm.md, \"A reward ceiling for RE\"); commit 7626b6d "
+        "still runs it",
     ),
 }
 """Fields that were removed, with the value at which they did nothing: a record or experiment that

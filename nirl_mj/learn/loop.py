@@ -178,7 +178,7 @@ class IrlLoop:
         spread = hi - lo
         if not c.reward_scaling:
             return raw, spread
-        return c.reward_ceiling * (1.0 - c.gamma) * (raw - lo) / max(spread, 1e-12), spread
+        return (1.0 - c.gamma) * (raw - lo) / max(spread, 1e-12), spread
 
     def _targets(self, t: Transitions) -> tuple[np.ndarray, float, float]:
         c = self.loop
@@ -222,12 +222,10 @@ class IrlLoop:
     # -- one iteration of Algorithm 1 -------------------------------------------------
 
     def eta(self) -> float:
-        """This iteration's Boltzmann parameter (eq. 8): ``eta`` -> ``eta_final`` linearly, per unit of
-        ``reward_ceiling``: the ceiling shrinks the spread of Q between actions by that factor, and
-        exploration should not grow with it."""
+        """This iteration's Boltzmann parameter (eq. 8): ``eta`` -> ``eta_final`` linearly."""
         c = self.loop
         frac = self.iteration / max(c.episodes - 1, 1)
-        return (c.eta + (c.eta_final - c.eta) * frac) / c.reward_ceiling
+        return c.eta + (c.eta_final - c.eta) * frac
 
     def step(self, rollouts: Rollouts, train_seeds: list[int], validate: Callable | None = None) -> Metrics:
         """One iteration: rollouts in the arenas of ``train_seeds``, theta, the next network."""

@@ -10,12 +10,11 @@ absorbing state; the value targets of eq. 14 need that state's value. Two readin
   absorbing component, w = mu_E^end - mu_pi^end, the mean reward block b(s_T) of the expert's
   episode ends minus the learner's (``learn/reward.py``); the absorbing value of an end s_T is
   w . b(s_T) mapped so that the expert's mean end is worth 1 and the learner's worst end in the
-  batch 0 (clipped to [0, 1]: with the default ``reward_ceiling`` of 1, what the best scaled
-  reward, 1 - gamma a step, earns forever). The scale is relative to the batch of ends it is
-  given (the replay window): when the window mixes arrivals and collisions, the learner's
-  arrivals end where the expert's do and come out near 1, its collisions (danger 7 in their
-  blocks) near 0; the learner's worst end is always worth 0, even in a window of arrivals only,
-  and a window of one end gives it 0
+  batch 0 (clipped to [0, 1]: what the best scaled reward, 1 - gamma a step, earns forever).
+  The scale is relative to the batch of ends it is given (the replay window): when the window
+  mixes arrivals and collisions, the learner's arrivals end where the expert's do and come out
+  near 1, its collisions (danger 7 in their blocks) near 0; the learner's worst end is always
+  worth 0, even in a window of arrivals only, and a window of one end gives it 0
   (tests/test_information_budget.py pins these cases). As DAC's absorbing state does for GAIL
   (Kostrikov et al. 2019), this makes an episode's end neither free nor fixed in value, without a
   task signal.
