@@ -250,7 +250,7 @@ RETIRED: dict[str, tuple[Any, str]] = {
     "reward_ceiling": (
         1.0,
         "rewards scaled into [0, c (1 - gamma)], retired on 2026-11-27: it did not lift RE-IRL out "
-        "of its timeouts (docs/notebook/algorithm.md, \"A reward ceiling for RE\"); commit 7626b6d "
+        'of its timeouts (docs/notebook/algorithm.md, "A reward ceiling for RE"); commit 7626b6d '
         "still runs it",
     ),
 }
