@@ -81,7 +81,10 @@ def main() -> None:
     parser.add_argument("--cpu-device", action="store_true", help="keep Warp's CPU device (a local try)")
     args = parser.parse_args()
     if args.out.exists():
-        shutil.rmtree(args.out)  # only ever this script's own output (git-ignored)
+        if any(not (p.is_dir() and p.name[:1] == "p" and p.name[1:].isdigit()) for p in args.out.iterdir()):
+            raise SystemExit(f"error: {args.out} holds more than this script's parts (p1/, p2/, ...); "
+                             "choose another --out")  # fmt: skip
+        shutil.rmtree(args.out)  # this script's own earlier parts
     with tempfile.TemporaryDirectory() as tmp:
         wheels = download(Path(tmp), args.python)
         print(f"{len(wheels)} wheels, {sum(w.stat().st_size for w in wheels) / 2**20:.0f} MiB", flush=True)
