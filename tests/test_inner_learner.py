@@ -56,16 +56,21 @@ def test_the_network_width_is_a_setting():
     assert network.get_weights(learner.net)["W2"].shape == (6, 33)
 
 
-def test_a_retired_setting_loads_only_at_the_value_that_did_nothing():
-    # weight_averaging (Polyak averaging of the kept policy) was removed: a record or experiment that
-    # holds 0 (off) loads as it was trained; any other value is refused, naming the commit that runs it
-    record = {**LearnerConfig.preset("default").to_dict(), "weight_averaging": 0.0}
+@pytest.mark.parametrize(
+    ("name", "neutral", "why"),
+    [("weight_averaging", 0.0, "Polyak averaging .* commit d3ea6fe"),
+     ("reward_ceiling", 1.0, "rewards scaled into .* commit 7626b6d")],
+)  # fmt: skip
+def test_a_retired_setting_loads_only_at_the_value_that_did_nothing(name, neutral, why):
+    # a removed setting (learn/config.py RETIRED): a record or experiment that holds its neutral value
+    # loads as it was trained; any other value is refused, naming the commit that runs it
+    record = {**LearnerConfig.preset("default").to_dict(), name: neutral}
     assert LearnerConfig.from_record(record) == LearnerConfig.preset("default")
-    with pytest.raises(ValueError, match="weight_averaging = 0.5: Polyak averaging .* commit d3ea6fe"):
-        LearnerConfig.from_record({**record, "weight_averaging": 0.5})
-    with pytest.raises(ValueError, match="--config: weight_averaging = 0.8"):
-        checked_changes({"weight_averaging": 0.8}, "--config")
-    assert checked_changes({"weight_averaging": 0.0, "gamma": 0.5}, "--config") == {"gamma": 0.5}
+    with pytest.raises(ValueError, match=f"{name} = 0.5: {why}"):
+        LearnerConfig.from_record({**record, name: 0.5})
+    with pytest.raises(ValueError, match=f"--config: {name} = 0.8"):
+        checked_changes({name: 0.8}, "--config")
+    assert checked_changes({name: neutral, "gamma": 0.5}, "--config") == {"gamma": 0.5}
 
 
 def test_n_step_returns_stop_at_the_end_of_each_trajectory():
@@ -111,13 +116,6 @@ def test_scaled_rewards_span_zero_to_one_minus_gamma():
         rewards, spread = learner._rewards(t)
         assert rewards[0] == pytest.approx(expected) and spread == 2.0
     # so the best reward forever is worth 0.1 / (1 - 0.9) = 1: an arrival's value
-
-
-def test_the_retired_reward_ceiling_loads_at_one_and_is_refused_below():
-    record = LearnerConfig().to_dict()
-    assert LearnerConfig.from_record({**record, "reward_ceiling": 1.0}) == LearnerConfig()
-    with pytest.raises(ValueError, match="reward_ceiling = 0.5: rewards scaled into"):
-        LearnerConfig.from_record({**record, "reward_ceiling": 0.5})
 
 
 def test_exploration_goes_linearly_from_eta_to_eta_final():
