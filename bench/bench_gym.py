@@ -84,6 +84,7 @@ def main() -> None:
                 "raw env.step (decisions/s)",
                 "gymnasium.make (decisions/s)",
                 "ratio",
+                "paired overhead",
                 "episodes",
             ],
             rows,

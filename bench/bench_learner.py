@@ -122,7 +122,8 @@ def main() -> None:
         "action selection, the reward step, SARSA targets and backpropagation, checkpoints. Target: "
         "learner / simulation <= 25 % over a default run of 60 iterations (issue 14; issue 4 asked "
         "for 20 % over 20). Validation (greedy episodes on 20 validation arenas every "
-        "5 iterations, for the policy selection) is reported apart.\n\n" + table
+        "5 iterations, for a policy selection by success: the default before 2026-11-26; today's "
+        '`selection = "validation"` only) is reported apart.\n\n' + table
     )
     print(body)
     write_section("Learner overhead (bench/bench_learner.py)", body)

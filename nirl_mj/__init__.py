@@ -1,12 +1,12 @@
 """nirl-mj: Neural Inverse Reinforcement Learning for a Robotino in MuJoCo.
 
-The data path, one module each: ``spec`` (task files) -> ``layout``/``arena``
-(procedural arenas) -> ``robot``/``drive`` (MJCF Robotino, omni-drive
-kinematics) -> ``task`` (the dm_control composer task, ``make_env``) ->
-``sensing`` (rays) -> ``features`` (phi(s), f(s, a)) -> ``experts``,
-``demos``, ``trajectory`` (demonstrations and their file format) -> ``learn``
-(NIRL, behaviour cloning) -> ``evaluate`` -> ``record``/``report``/``pipeline``
-(Rerun, figures, the main job) -> ``cli`` (the ``nirl-mj`` command).
+The data path, one package each: ``sim`` (task files, procedural arenas, the MJCF
+Robotino and its omni-drive, the dm_control composer task, range rays) -> ``data``
+(phi(s) and f(s, a), trajectories and their dataset format) -> ``experts``
+(demonstrators) -> ``learn`` (NIRL, the IRL baselines, behaviour cloning) ->
+``experiments`` (training, evaluation, compare/sweep/suite, the main job) ->
+``inspect`` (Rerun recordings, videos, figures) -> ``cli`` (the ``nirl-mj``
+command); ``gym`` is the Gymnasium face of the same task.
 """
 
 import os

@@ -107,7 +107,7 @@ def test_rl_methods_are_validated_in_experiment_files():
         ExperimentError, match='algo, steps, selection, envs, settings apply to kind = "rl" only'
     ):
         from_dict({"kind": "compare", "methods": ["X"], "method": {"X": {"kind": "bc", "steps": 3}}})
-    with pytest.raises(ExperimentError, match="compare experiments only"):
+    with pytest.raises(ExperimentError, match="compare and suite experiments, not in a sweep"):
         from_dict({"kind": "sweep", "methods": ["PPO-reward"], "obstacles": [5], "speeds": [2.0]})
     # An experiment without an RL method keeps the identity it had before RL methods existed.
     assert "algo" not in from_dict({"kind": "compare", "methods": ["rule"]}).identity()["methods"][0]

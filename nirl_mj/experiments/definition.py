@@ -13,7 +13,7 @@ preset of ``nirl_mj.learn.config``), behaviour cloning (``"bc"``), DAgger with t
 demonstrator as its interactive expert (``"dagger"``, ``nirl_mj.experiments.dagger``), a
 reference policy (``"forward"``, ``"rule"``), the demonstrator itself driving the test arenas
 (``"expert"``), or a Stable-Baselines3 learner (``"rl"``,
-``nirl_mj.experiments.rl``; compare experiments only, needs ``nirl-mj[gym]``): PPO or DQN on
+``nirl_mj.experiments.rl``; compare and suite experiments, not sweep; needs ``nirl-mj[gym]``): PPO or DQN on
 the task's reward (the RL reference), or GAIL / AIRL, PPO on a discriminator's reward learned
 from the demonstrations. The built-in ones are :data:`BUILTIN_METHODS`; ``[method.NAME]``
 tables add others or change built-in ones.
@@ -399,7 +399,7 @@ def from_dict(
         rl = [m.name for m in methods if m.kind == "rl"]
         if rl:
             raise ExperimentError(f'{where("methods")}: {", ".join(rl)}: kind = "rl" runs in compare '
-                                  "experiments only")  # fmt: skip
+                                  "and suite experiments, not in a sweep")  # fmt: skip
         if not experiment.obstacles or not experiment.speeds:
             raise ExperimentError(f"{source}: a sweep needs non-empty obstacles and speeds lists")
         for key, names in (("obstacles", [str(n) for n in experiment.obstacles]),
