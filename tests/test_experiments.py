@@ -552,7 +552,8 @@ worst = 43
 def test_per_run_demonstrations_final_arenas_and_only(tmp_path, capsys):
     """[demos] per_run: run r learns from its own demonstrations (seeded seed + r), every method of
     the run from the same file; test_domain = "final" draws other test arenas than the development
-    domain; --only computes the named methods' cells and reports the others as they are stored."""
+    domain; --only computes the named methods' cells and reports the others as they are stored;
+    --reuse takes the cells of a directory with the same runs' demonstrations."""
     head = (
         'kind = "compare"\nruns = 2\ntests = 2\ntest_domain = "final"\nmethods = ["BC", "rule", "forward"]\n'
     )
@@ -578,8 +579,14 @@ def test_per_run_demonstrations_final_arenas_and_only(tmp_path, capsys):
     assert {m["runs"] for m in last["methods"].values()} == {2}
     assert main([*args, "--only", "PPO"]) == 2
     assert "--only PPO: not a method of tiny" in capsys.readouterr().err
-    assert main([*args, "--reuse", str(out)]) == 2
-    assert "draws them per run" in capsys.readouterr().err
+    # --reuse checks each run's own demonstrations: every cell is taken, none computed again
+    again = tmp_path / "again"
+    assert main([*args[:3], "--out", str(again), *args[5:], "--reuse", str(out)]) == 0
+    assert "reuse: 6 finished cells taken from" in capsys.readouterr().err
+    for ident in ("BC-run001", "rule-run000", "forward-run001"):
+        taken = json.loads((again / "cells" / f"{ident}.json").read_text())
+        assert taken["reused_from"] == str(out.resolve())
+        assert taken["result"] == json.loads((out / "cells" / f"{ident}.json").read_text())["result"]
 
 
 def test_an_experiment_grows_by_methods_that_keep_its_test_arenas(tmp_path):

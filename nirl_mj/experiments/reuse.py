@@ -8,7 +8,8 @@ method M and run r is taken only when all of these hold:
 
 - OLD's identity equals the new one in every key but the method list and the learners' settings
   (task, test task, seed, tests, expert, demonstrations, config, sweep axes);
-- OLD's demonstrations hold the same arrays;
+- OLD's demonstrations hold the same arrays (drawn per run: the run's own; a run OLD has no
+  demonstrations for is left to be computed);
 - M does not train and OLD holds M with the same definition; or M is a trained learner and OLD
   holds a method with the same resolved learner settings (which name the variant, the algorithm
   and every setting), of M's name (preferred) or another, as when a named variant became the
@@ -32,7 +33,14 @@ from pathlib import Path
 import numpy as np
 
 from nirl_mj.experiments.definition import Experiment, ExperimentError
-from nirl_mj.experiments.protocol import EXPERIMENT_FILE, RunJob, cell_problem, resolved_learners, run_seed
+from nirl_mj.experiments.protocol import (
+    EXPERIMENT_FILE,
+    RunJob,
+    cell_problem,
+    demos_path,
+    resolved_learners,
+    run_seed,
+)
 
 SHARED_KEYS = ("kind", "task", "test_task", "seed", "tests", "expert", "demos", "obstacles", "speeds",
                "test_domain", "demos_per_run")  # fmt: skip
@@ -65,13 +73,8 @@ def read_old(old: str | Path, experiment: Experiment) -> tuple[Path, dict]:
     directory with demonstrations, or differs from ``experiment`` in a shared key. Called before
     the new output directory is made, so a wrong OLD costs nothing."""
     old = Path(old).resolve()
-    if experiment.demos_per_run:
-        raise ExperimentError(
-            f"--reuse {old}: takes cells of experiments with one set of demonstrations; this one draws "
-            "them per run ([demos] per_run = true), so run it without --reuse"
-        )
     marker = old / EXPERIMENT_FILE
-    if not marker.is_file() or not (old / "demos.npz").is_file():
+    if not marker.is_file() or not demos_path(old, experiment, 0).is_file():
         raise ExperimentError(f"--reuse {old}: holds no nirl-mj experiment with demonstrations")
     try:
         saved = json.loads(marker.read_text())
@@ -126,16 +129,17 @@ def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     return sources
 
 
-def same_tests(saved: dict, experiment: Experiment, demos: Path) -> Callable[[RunJob], bool]:
+def same_tests(saved: dict, experiment: Experiment, out: Path) -> Callable[[RunJob], bool]:
     """A check of whether the saved experiment gave a job's run the job's test arenas (computed
-    once per run: the runs of one seed share them); ``demos`` the experiment's demonstrations."""
+    once per run: the runs of one seed share them), held out from the run's demonstrations in
+    ``out``."""
     from nirl_mj.data.dataset import load_dataset
 
-    demo_seeds = {t.arena_seed for t in load_dataset(demos)}
     known: dict[int, bool] = {}
 
     def check(job: RunJob) -> bool:
         if job.run not in known:
+            demo_seeds = {t.arena_seed for t in load_dataset(demos_path(out, experiment, job.run))}
             seeds = old_test_seeds(saved, run_seed(experiment, job.run), experiment.tests, demo_seeds)
             known[job.run] = seeds == list(job.test_seeds)
         return known[job.run]
@@ -161,11 +165,19 @@ def reuse_cells(
     old, saved = read_old(old, experiment)
     if old == out:
         raise ExperimentError(f"--reuse {old} is the output directory itself; give an earlier one")
-    if not same_arrays(old / "demos.npz", out / "demos.npz"):
-        raise ExperimentError(f"--reuse {old}: its demonstrations differ from {out / 'demos.npz'}")
-    sources, tests_match = method_sources(saved, experiment), same_tests(saved, experiment, out / "demos.npz")
+    runs = sorted({run for _, run in jobs})
+    if not experiment.demos_per_run:
+        runs = runs[:1]  # one set of demonstrations for every run
+    shared = [r for r in runs if demos_path(old, experiment, r).is_file()]  # OLD may have fewer runs
+    for run in shared:
+        mine, theirs = demos_path(out, experiment, run), demos_path(old, experiment, run)
+        if not same_arrays(theirs, mine):
+            raise ExperimentError(f"--reuse {old}: its demonstrations {theirs} differ from {mine}")
+    sources, tests_match = method_sources(saved, experiment), same_tests(saved, experiment, out)
     source, target, taken = CellStore(old / "cells", check=cell_problem), CellStore(out / "cells"), []
     for (name, run), job in jobs.items():
+        if experiment.demos_per_run and run not in shared:
+            continue
         ident = cell_id(name, run)
         found = [m for m in sources[name] if source.load(cell_id(m, run)) is not None]
         if not found or target.load(ident) is not None:
@@ -240,7 +252,7 @@ def restore_published(
     if runs is not None and not set(runs) & set(planned):
         raise ExperimentError(f"runs {runs.start}-{runs.stop - 1}: none is a run of this experiment "
                               f"(runs {planned[0]}-{planned[-1]})")  # fmt: skip
-    tests_match = same_tests(saved, experiment, out / "demos.npz")
+    tests_match = same_tests(saved, experiment, out)
     store = CellStore(out / "cells", check=cell_problem)
     chosen, other = [], set()
     for (name, run), job in jobs.items():
