@@ -4,9 +4,11 @@
 #   bash bench/gpu_check.sh stash   # every call but the last: keep this call's part on the machine
 #   bash bench/gpu_check.sh run     # the last: unpack every part, run bench_backend.py on the GPU
 # The run writes docs/PERFORMANCE.md's Warp section there and copies it, the JSON line and the log
-# to $OUT, which comes back. Untested on a GPU when written (no machine was lent): the first session
-# that has one finds out. GPU_CHECK_DEVICE=cpu GPU_CHECK_ARGS='--worlds 4 --quick --json' tries the
-# same steps on Warp's CPU device (with a pack for the local Python: gpu_pack.py --python 3.11).
+# to $OUT, which comes back. First run on an H100 at commit 2b1cbc8 (docs/results/gpu_backend): it
+# took nearly all of the call's 600 s, about 150 s of it compiling Warp's kernels; the timings of
+# both CUDA-graph modes since then add about two minutes. GPU_CHECK_DEVICE=cpu
+# GPU_CHECK_ARGS='--worlds 4 --quick --json' tries the same steps on Warp's CPU device (with a pack
+# for the local Python: gpu_pack.py --python 3.11).
 set -euo pipefail
 verb=${1:?stash or run}
 mkdir -p .gpu-stash
@@ -30,6 +32,9 @@ mkdir -p "$out"
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv; python3 --version
   python3 -c "import mujoco, warp, mujoco_warp, dm_control; print('mujoco', mujoco.__version__, 'warp', warp.__version__)"
 } 2>&1 | tee "$out/machine.txt"
-python3 bench/bench_backend.py --device "${GPU_CHECK_DEVICE:-cuda}" ${GPU_CHECK_ARGS:---json} 2>&1 | tee "$out/bench_backend.log"
+# Stopped before the call's limit so that what it wrote (the section is written once the agreement
+# is in, before the launch-by-launch timings) still comes back.
+timeout "${GPU_CHECK_LIMIT_S:-520}" python3 bench/bench_backend.py --device "${GPU_CHECK_DEVICE:-cuda}" \
+  ${GPU_CHECK_ARGS:---json} 2>&1 | tee "$out/bench_backend.log" || echo "bench_backend.py stopped: rc $?" >&2
 tail -n 1 "$out/bench_backend.log" > "$out/bench_backend.json"
 cp docs/PERFORMANCE.md "$out/PERFORMANCE.md"

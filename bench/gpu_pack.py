@@ -16,8 +16,7 @@ right after the other.
 
     python bench/gpu_pack.py       # 232 MiB of wheels -> 93 MiB in 2 parts; ~10 min (xz on one core)
 
-Only the packing has run here (no GPU machine was lent when it was written): the first session with
-a GPU checks the rest.
+These parts and ``bench/gpu_check.sh`` ran on an H100 at commit 2b1cbc8 (docs/results/gpu_backend).
 """
 
 from __future__ import annotations

@@ -113,8 +113,7 @@ def test_avoids_a_single_obstacle_on_the_straight_line():
 def test_ordinary_decisions_are_the_rule_on_phi():
     # The scores behind ordinary decisions pick exactly what rule_policy picks
     # on phi(s), backing off when it rules every arc out.
-    from nirl_mj.experts.policies import rule_policy
-    from nirl_mj.experts.sensor import rule_scores
+    from nirl_mj.experts.policies import rule_policy, rule_scores
 
     rng = np.random.default_rng(0)
     for _ in range(2000):

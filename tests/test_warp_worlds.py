@@ -88,6 +88,7 @@ def test_batched_rollouts_of_the_rule_reproduce_its_cpu_success(worlds):
     assert [t.arena_seed for t in warp_runs] == seeds
     assert [t.outcome for t in warp_runs] == [t.outcome for t in cpu_runs]
     assert warp["success_rate"] == cpu["success_rate"]
+    assert not worlds.graphed  # CUDA graphs are for device 'cuda': on the CPU device, launch by launch
     for a, b in zip(warp_runs, cpu_runs, strict=True):
         n = min(10, len(a), len(b))
         np.testing.assert_array_equal(a.features[: n + 1], b.features[: n + 1])
@@ -129,6 +130,10 @@ def test_bad_worlds_and_devices_are_refused():
         WarpWorlds("navigate", 0)
     with pytest.raises(ValueError, match="device 'tpu': accepted: cpu, cuda"):
         WarpWorlds("navigate", 2, device="tpu")
+    with pytest.raises(
+        ValueError, match="CUDA graphs need device 'cuda', got 'cpu'; accepted here: None, False"
+    ):
+        WarpWorlds("navigate", 2, device="cpu", graph=True)
     with pytest.raises(ValueError, match="backend 'jax': accepted: cpu, warp"):
         Backend("jax")
 

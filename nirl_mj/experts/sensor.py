@@ -45,6 +45,7 @@ import dm_env
 import numpy as np
 
 from nirl_mj.data import features
+from nirl_mj.experts.policies import rule_scores
 from nirl_mj.sim import drive
 from nirl_mj.sim.memory import CELL, STUCK_STEPS, RayMemory
 
@@ -63,32 +64,6 @@ _CELL_SLACK = CELL * math.sqrt(0.5)
 # along the follow-up arc.
 _FIRST_SAMPLES = (10, 20, 30, 40, 50)
 _SECOND_SAMPLES = (17, 34, 50)
-
-# The rule on phi(s), as nirl_mj.experts.policies.rule_policy, in table form so that
-# one decision costs a handful of numpy calls. Directions (degrees) of the
-# sensors in phi's danger block [S1, S2, S3, S4, S7, S8, S9].
-_PHI_SENSOR_DEG = np.degrees(features.SENSOR_ANGLES[list(features.FEATURE_SENSORS)])
-_RULE_RULED_OUT = 5.0  # danger level from which the rule rules an arc out
-
-
-def _angle_gap_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """|a - b| wrapped to [0, 180] degrees, broadcast over a[:, None] and b[None, :]."""
-    return np.abs((a[:, None] - b[None, :] + 180.0) % 360.0 - 180.0)
-
-
-# Danger seen along action a from phi sensor j is danger_j - _RULE_FADE[a, j]:
-# a sensor's level fades by two levels per 40 degrees away from its cone's
-# centre, taken at the arc's chord (half its turn) and at its final heading.
-_RULE_FADE = (
-    2.0
-    / 40.0
-    * np.minimum(
-        _angle_gap_deg(_TURNS_DEG / 2.0, _PHI_SENSOR_DEG), _angle_gap_deg(_TURNS_DEG, _PHI_SENSOR_DEG)
-    )
-)
-# Deviation of each action's heading change from the centre of target sector
-# V = 1..9 (row V - 1), in units of 60 degrees.
-_RULE_DEVIATION = _angle_gap_deg(np.arange(features.N_SENSORS) * 40.0, _TURNS_DEG) / 60.0
 
 
 @functools.lru_cache(maxsize=4)
@@ -137,15 +112,6 @@ def _look_ahead_table(decision_period: float) -> np.ndarray:
 def _wrap_deg(angle: np.ndarray | float) -> np.ndarray | float:
     """Angle in degrees wrapped to [-180, 180)."""
     return (angle + 180.0) % 360.0 - 180.0
-
-
-def rule_scores(phi: np.ndarray) -> np.ndarray:
-    """Scores (5,) of the forward actions under :func:`nirl_mj.experts.policies.rule_policy`
-    (lower is better, ``inf`` ruled out); all ``inf`` means the rule backs off."""
-    danger = np.max(phi[None, 0:7] - _RULE_FADE, axis=1)
-    region = int(phi[7])
-    penalty = np.maximum(danger - 2.0, 0.0) ** 2 / 4.0
-    return np.where(danger >= _RULE_RULED_OUT, np.inf, _RULE_DEVIATION[region - 1] + penalty)
 
 
 class SensorExpert:

@@ -56,6 +56,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -140,6 +141,7 @@ class WarpWorlds:
         device: str = "cuda",
         contacts_per_world: int = 32,
         constraints_per_world: int = 160,
+        graph: bool | None = None,
     ) -> None:
         spec = load_task(task)
         problems = unsupported(spec)
@@ -152,6 +154,16 @@ class WarpWorlds:
         self._wp, self._mjw = wp, mjw = _import_warp()
         if device == "cuda" and not wp.is_cuda_available():
             raise ValueError("device 'cuda': Warp sees no CUDA GPU on this machine; accepted here: cpu")
+        if graph and device != "cuda":
+            raise ValueError(
+                f"graph = True: CUDA graphs need device 'cuda', got {device!r}; accepted here: None, False"
+            )
+        # Python launches hundreds of kernels per physics step (10 ms a step on an H100 whatever the
+        # number of worlds: docs/PERFORMANCE.md); a CUDA graph of a whole decision replays them at once.
+        self._graph_wanted = device == "cuda" if graph is None else bool(graph)
+        self._graph: Any = None
+        self.graph_error: str | None = None
+        """Why the decision could not be captured as a CUDA graph (it then runs launch by launch)."""
         self._kernels = _kernels()
         self.spec, self.n, self.device = spec, int(worlds), device
         self._reference = make_env(spec)
@@ -263,7 +275,7 @@ class WarpWorlds:
         Updates :attr:`outcomes`, :attr:`steps` and :attr:`observation`."""
         if len(actions) != self.n:
             raise ValueError(f"step: one action per world ({self.n}), got {len(actions)}")
-        wp, mjw, control, kernels = self._wp, self._mjw, self.spec.control, self._kernels
+        wp, control = self._wp, self.spec.control
         running = self.outcomes == int(Outcome.RUNNING)
         commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
         bounds = continuous_action_spec(self.spec) if control.actions == "continuous" else None
@@ -283,20 +295,7 @@ class WarpWorlds:
         dw = self._dw
         with wp.ScopedDevice(self.device):
             self._commands.assign(commands)
-            for s in range(1, self._substeps * self._n_cmd + 1):
-                if (s - 1) % self._substeps == 0:
-                    k = (s - 1) // self._substeps
-                    wp.launch(kernels.command, dim=self.n, inputs=[
-                        self._commands, k, self._outcome_w, int(self._planar), dw.qpos, self._qposadr + 2,
-                        float(control.command_period), self._ctrl_start, dw.ctrl,
-                    ])  # fmt: skip
-                mjw.step(self._mw, dw)
-                wp.launch(kernels.hold, dim=self.n, inputs=[self._outcome_w, self._held, dw.qpos, dw.qvel,
-                                                            self._kept_qpos, self._kept_qvel])  # fmt: skip
-                if s in self._checks:
-                    self._judge(end_of_decision=False)
-            mjw.forward(self._mw, dw)
-            self._judge(end_of_decision=True)
+            self._run_decision()
             outcomes = self._outcome_w.numpy()
             overflow = dw.overflow.numpy() & _BUFFER_OVERFLOWS
         if overflow.any():
@@ -313,6 +312,49 @@ class WarpWorlds:
             self._outcome_w.assign(outcomes)
         self.outcomes = outcomes.astype(np.int32)
         self._sense()
+
+    @property
+    def graphed(self) -> bool:
+        """Whether decisions replay a captured CUDA graph (from the second decision on)."""
+        return self._graph is not None
+
+    def _run_decision(self) -> None:
+        """The device work of one decision (its commands already in ``self._commands``): from the
+        second decision on, the replay of a CUDA graph captured after the first, which loaded every
+        kernel. The graph replays the same launches on the same arrays, which :meth:`reset` and
+        :meth:`step` only ever write in place."""
+        wp = self._wp
+        if self._graph is not None:
+            wp.capture_launch(self._graph)
+            return
+        self._decide()
+        if self._graph_wanted and self.graph_error is None:
+            try:
+                with wp.ScopedCapture() as capture:
+                    self._decide()
+                self._graph = capture.graph
+            except Exception as error:  # capture is an optimisation: launch by launch still works
+                self.graph_error = f"{type(error).__name__}: {error}"
+                warnings.warn(f"the decision runs without a CUDA graph: {self.graph_error}", stacklevel=3)
+
+    def _decide(self) -> None:
+        """Launches one decision's kernels: commands, physics steps, holds and the task's checks.
+        No host read or allocation from host memory in here, so that it can be captured."""
+        wp, mjw, dw, kernels, control = self._wp, self._mjw, self._dw, self._kernels, self.spec.control
+        for s in range(1, self._substeps * self._n_cmd + 1):
+            if (s - 1) % self._substeps == 0:
+                k = (s - 1) // self._substeps
+                wp.launch(kernels.command, dim=self.n, inputs=[
+                    self._commands, k, self._outcome_w, int(self._planar), dw.qpos, self._qposadr + 2,
+                    float(control.command_period), self._ctrl_start, dw.ctrl,
+                ])  # fmt: skip
+            mjw.step(self._mw, dw)
+            wp.launch(kernels.hold, dim=self.n, inputs=[self._outcome_w, self._held, dw.qpos, dw.qvel,
+                                                        self._kept_qpos, self._kept_qvel])  # fmt: skip
+            if s in self._checks:
+                self._judge(end_of_decision=False)
+        mjw.forward(self._mw, dw)
+        self._judge(end_of_decision=True)
 
     def _judge(self, end_of_decision: bool) -> None:
         """Sets the outcome of every running world whose state decides it (the task's checks)."""
@@ -427,8 +469,12 @@ class WarpWorlds:
         while (episode >= 0).any():
             active = np.flatnonzero(episode >= 0).tolist()
             taken, recorded = [idle] * self.n, {}
-            for w in active:
-                recorded[w], taken[w] = self._command(agent.act(_timestep(self.world_observation(w))))
+            if hasattr(agent, "act_batch"):  # one call for every world (the reference policies)
+                chosen = agent.act_batch(self.observation["features"][active]).tolist()
+            else:
+                chosen = [agent.act(_timestep(self.world_observation(w))) for w in active]
+            for w, action in zip(active, chosen, strict=True):
+                recorded[w], taken[w] = self._command(action)
             self.step(taken)
             ended = []
             for w in active:
