@@ -99,7 +99,9 @@ def main() -> None:
     print(f"{mib:.0f} MiB compressed, {len(parts)} parts under {args.out}; the calls, one after the other:")
     for i in range(1, len(parts) + 1):
         verb = "run" if i == len(parts) else "stash"
-        print(f'  run(command="bash bench/gpu_check.sh {verb}", carry=[".gpu/p{i}"], timeout_s=600)')
+        carry = f'".gpu/p{i}", ".gpu/cache"' if verb == "run" else f'".gpu/p{i}"'
+        print(f'  run(command="bash bench/gpu_check.sh {verb}", carry=[{carry}], timeout_s=600)')
+    print("The last call returns warp-cache.tgz (Warp's kernels) where it fits: put it in .gpu/cache/")
 
 
 if __name__ == "__main__":
