@@ -66,10 +66,8 @@ class Departure:
 
 FIRST = "before 2026-11-24 (the first inner learner)"
 ROUND1 = "2026-11-24"
-ROUND2 = "2026-11-24, second round"
 BALL = "\\|\\|theta\\|\\| <= 1"  # escaped for a table cell
-TRAIN = "`nirl-mj train --demos D --out R --seed S --config {}`"
-SHORT = 'no stored result (2 runs; docs/notebook/algorithm.md, "Ablations: each departure undone")'
+DEV = "development arenas, demonstrations drawn per run"
 
 DEPARTURES: tuple[Departure, ...] = (
     Departure(
@@ -80,10 +78,7 @@ DEPARTURES: tuple[Departure, ...] = (
         'prefer "turn towards the target\'s sector" and a constant to prefer an action as such; (cos, sin) '
         "carry that preference to the sectors behind the robot, which the expert almost never saw",
         (
-            Unstored(
-                f"the block without (cos, sin) against eq. 4-5: ablated at the default {FIRST}, {SHORT}",
-                TRAIN.format("reward_features=paper"),
-            ),
+            Ablation("departures", "features-paper", "NIRL", note=f"phi(s) in the action's block; {DEV}"),
             Ablation(
                 "table1_nirl_onehot",
                 "NIRL",
@@ -131,20 +126,20 @@ DEPARTURES: tuple[Departure, ...] = (
         "**Margin loss** `margin_loss = 0.1`; paper: 1",
         f"with features in [0, 1] and {BALL} a margin of 1 cannot be met, and the step becomes a "
         'majority-class classifier ("forward")',
-        (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("margin_loss=1.0")),),
+        (Ablation("departures", "margin-1", "NIRL", note=DEV),),
     ),
     Departure(
         "**Max-margin step** sigma_1 / (1 + 0.1 i) over iterations i (`mmp_step_decay = 0.1`); paper preset: "
         "constant",
         "theta chases the learner; the decay damps its swings",
-        (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("mmp_step_decay=0")),),
+        (Ablation("departures", "step-const", "NIRL", note=DEV),),
     ),
     Departure(
         "**Reward scaling** `reward_scaling = true`: the replay window's rewards mapped affinely into "
         "[0, 1 - gamma]; paper: theta^T f as it is, targets outside [0, 1] clipped",
         "the sigmoid Q lives in (0, 1): raw rewards put most targets outside it, and the network learns "
         "their sign",
-        (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("reward_scaling=false")),),
+        (Ablation("departures", "raw-rewards", "NIRL", note=DEV),),
     ),
     Departure(
         '**The value of an episode\'s end** `terminal_value = "learned"` (`learn/terminal.py`); paper '
@@ -158,10 +153,7 @@ DEPARTURES: tuple[Departure, ...] = (
                 "NIRL",
                 note="the task's outcome instead: an arrival worth 1, other ends 0; development arenas",
             ),
-            Unstored(
-                "every end worth 0: one run, no stored result (2026-11-26: "
-                'docs/notebook/algorithm.md, "One information budget")'
-            ),
+            Ablation("departures", "end-0", "NIRL", note=f"every end worth 0; {DEV}"),
         ),
     ),
     Departure(
@@ -169,42 +161,33 @@ DEPARTURES: tuple[Departure, ...] = (
         "pair taken (eq. 14)",
         "the greedy policy is the one reported, so its values are the ones to learn; SARSA's targets value "
         "the exploring Boltzmann policy, which collides",
-        (Ablation("nirl_default", "sarsa", "NIRL-g90-n3", "nirl_discount", ROUND1),),
+        (Ablation("departures", "sarsa", "NIRL", note=DEV),),
     ),
     Departure(
         "**3-step targets** `n_step = 3`, cut at the trajectory's end; paper: 1",
         "an end (arrival or collision) reaches the pairs that led to it three times faster",
-        (Ablation("nirl_discount", "NIRL-g90", "NIRL-g90-n3", at=ROUND1),),
+        (Ablation("departures", "n1", "NIRL", note=DEV),),
     ),
     Departure(
         "**Discount** `gamma = 0.9`, in the targets and the reward step's suffix sums; paper: 0.65",
         "0.65 sees about three decisions ahead: too short to value a detour around an obstacle",
-        (Ablation("nirl_default", "gamma-065", "NIRL-g90-n3", "nirl_discount", ROUND1),),
+        (Ablation("departures", "gamma-065", "NIRL", note=DEV),),
     ),
     Departure(
         "**Hidden units** `hidden_units = 32`; paper: 10",
         "more room for the values of six actions; still a small share of the simulation's cost",
-        (Ablation("nirl_default", "hidden-10", "NIRL-g90-n3", "nirl_discount", ROUND1),),
+        (Ablation("departures", "hidden-10", "NIRL", note=DEV),),
     ),
     Departure(
         "**Input scaling** `input_scaling = true`: D/7 (and V/9 without the next row); paper: raw phi(s)",
         "D (0..7) and V (1..9) brought to the scale of the 0/1 flags I and U, for sigmoid units",
-        (Unstored("not ablated", TRAIN.format("input_scaling=false")),),
+        (Ablation("departures", "raw-inputs", "NIRL", note=f"the bearing inputs kept; {DEV}"),),
     ),
     Departure(
         "**Bearing inputs** `input_bearing = true`: (cos, sin) of V's sector centre in V's place, 17 inputs",
         'on V/9 "target behind on the left" (5/9) and "behind on the right" (6/9) are neighbours, where '
         "the right actions are opposite; with (cos, sin) they differ in the sign of one input",
-        (
-            Ablation(
-                "nirl_bearing",
-                "NIRL-bearing",
-                "NIRL-bearing-in",
-                "nirl_bearing_inputs",
-                ROUND2,
-                "V/9 inputs, bearing reward features kept",
-            ),
-        ),
+        (Ablation("departures", "no-bearing-in", "NIRL", note=f"V/9 inputs; {DEV}"),),
     ),
     Departure(
         "**Experience replay** `replay_episodes = 10`, `net_epochs = 4`, `batch_size = 64`: minibatch "
@@ -212,14 +195,21 @@ DEPARTURES: tuple[Departure, ...] = (
         "steps",
         "one iteration's pairs are too few to learn from (measured on the project's 2-D prototype "
         "before this code)",
-        (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("replay_episodes=0")),),
+        (
+            Ablation(
+                "departures",
+                "no-replay",
+                "NIRL",
+                note=f"20 full-batch epochs on this iteration's pairs; {DEV}",
+            ),
+        ),
     ),
     Departure(
         "**Exploration** eta from 5 to 60, linearly over the iterations (`eta`, `eta_final`); paper preset: "
         "10 throughout (the paper gives no value)",
         "a high eta from the start never tries the actions the random initial network undervalues; a low "
         "one tries everything, a high one exploits",
-        (Unstored(f"ablated at the default {FIRST}, {SHORT}", TRAIN.format("eta=10 --config eta_final=10")),),
+        (Ablation("departures", "eta-10", "NIRL", note=DEV),),
     ),
     Departure(
         '**Selection** `selection = "demo_balanced"`: the kept policy whose greedy actions predict the '
@@ -242,7 +232,7 @@ DEPARTURES: tuple[Departure, ...] = (
         "**Budget** `episodes = 60`, `epsilon = -inf` (the margin t is reported, never a stop); paper "
         "preset: 120 iterations, stop when t <= 0",
         "a run stays within minutes on one core",
-        (Unstored("not ablated", TRAIN.format("episodes=120")),),
+        (Ablation("departures", "iter-120", "NIRL", note=DEV),),
     ),
     Departure(
         '**All of the above** undone: `--variant paper` (`learn/config.py`, `PRESETS["paper"]`)',
