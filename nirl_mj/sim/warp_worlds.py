@@ -126,8 +126,9 @@ class WarpWorlds:
     ``task`` is a task name, file or :class:`TaskSpec`; ``worlds`` the batch size N; ``device``
     ``"cuda"`` or ``"cpu"`` (Warp's CPU device: slow, for tests). ``contacts_per_world`` and
     ``constraints_per_world`` size Warp's buffers (an overflow raises RuntimeError, never drops
-    contacts silently). The first step compiles Warp's kernels (about a minute on the CPU, cached
-    on disk afterwards).
+    contacts silently). ``graph``: replay each decision as a CUDA graph captured after the first
+    (``None``: on ``cuda``, the default there; ``True`` only on ``cuda``). The first step compiles
+    Warp's kernels (about a minute on the CPU, cached on disk afterwards).
 
     State, per world: :attr:`seeds` (the arena of its episode), :attr:`steps` (decisions taken),
     :attr:`outcomes` (an :class:`Outcome` value, or :data:`IDLE`) and :attr:`observation` (the
@@ -158,8 +159,8 @@ class WarpWorlds:
             raise ValueError(
                 f"graph = True: CUDA graphs need device 'cuda', got {device!r}; accepted here: None, False"
             )
-        # Python launches hundreds of kernels per physics step (10 ms a step on an H100 whatever the
-        # number of worlds: docs/PERFORMANCE.md); a CUDA graph of a whole decision replays them at once.
+        # Python launches hundreds of kernels per physics step (10 ms a step with one world on an H100:
+        # docs/PERFORMANCE.md); a CUDA graph of a whole decision replays them at once.
         self._graph_wanted = device == "cuda" if graph is None else bool(graph)
         self._graph: Any = None
         self.graph_error: str | None = None
