@@ -4,9 +4,8 @@
 #   bash bench/gpu_check.sh stash   # every call but the last: keep this call's part on the machine
 #   bash bench/gpu_check.sh run     # the last: unpack every part, run bench_backend.py on the GPU
 # The run writes docs/PERFORMANCE.md's Warp section there and copies it, the JSON line and the log
-# to $OUT, which comes back. First run on an H100 at commit 2b1cbc8 (docs/results/gpu_backend): it
-# took nearly all of the call's 600 s, about 150 s of it compiling Warp's kernels; the timings of
-# both CUDA-graph modes since then add about two minutes. GPU_CHECK_DEVICE=cpu
+# to $OUT, which comes back. On an H100 at commit 7115e0b (docs/results/gpu_backend) the run,
+# both CUDA-graph modes, took 354 s of the call's 600 s, 131 s of it compiling Warp's kernels. GPU_CHECK_DEVICE=cpu
 # GPU_CHECK_ARGS='--worlds 4 --quick --json' tries the same steps on Warp's CPU device (with a pack
 # for the local Python: gpu_pack.py --python 3.11).
 set -euo pipefail

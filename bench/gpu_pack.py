@@ -16,7 +16,8 @@ right after the other.
 
     python bench/gpu_pack.py       # 232 MiB of wheels -> 93 MiB in 2 parts; ~10 min (xz on one core)
 
-These parts and ``bench/gpu_check.sh`` ran on an H100 at commit 2b1cbc8 (docs/results/gpu_backend).
+These parts and ``bench/gpu_check.sh`` ran on an H100 at commits 2b1cbc8, d1a32e9 and 7115e0b
+(docs/results/gpu_backend).
 """
 
 from __future__ import annotations

@@ -81,6 +81,23 @@ class NetworkAgent:
             return choice
         return network.draw_action(choice, self.rng)
 
+    def act_batch(self, phi: np.ndarray) -> np.ndarray:
+        """The actions (N,) int64 for the states phi (N, 16) of N worlds, in one network call.
+
+        Greedy: argmax of each row (eq. 9). Boltzmann: one ``rng.random()`` per row, in row order,
+        drawn as :meth:`act` draws them (inverse CDF, eq. 8), so a batch spends the generator as
+        N calls of :meth:`act` would. The batched matrix product may round differently from a
+        one-row product in the last digit, so an exact tie may break otherwise than in :meth:`act`.
+        Needs :meth:`reset` called once (it reads the network's weights)."""
+        phi = np.asarray(phi)
+        q = network.q_values(self.net, self.inputs(phi), self._weights)
+        if self.eta is None:
+            return network.greedy_actions(q).astype(np.int64)
+        cdf = np.cumsum(network.boltzmann_probabilities(q, self.eta), axis=-1)
+        u = self.rng.random(len(phi)) * cdf[:, -1]
+        # np.searchsorted(cdf, u, side="right") row by row, as network.draw_action
+        return np.minimum((cdf <= u[:, None]).sum(axis=1), cdf.shape[1] - 1).astype(np.int64)
+
 
 def demonstrated_pairs(demos: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
     """phi(s) (N, 16) and actions (N,) of every demonstrated decision; an error if there are none."""

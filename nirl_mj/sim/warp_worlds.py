@@ -470,7 +470,7 @@ class WarpWorlds:
         while (episode >= 0).any():
             active = np.flatnonzero(episode >= 0).tolist()
             taken, recorded = [idle] * self.n, {}
-            if hasattr(agent, "act_batch"):  # one call for every world (the reference policies)
+            if hasattr(agent, "act_batch"):  # one call for every world (reference policies, networks)
                 chosen = agent.act_batch(self.observation["features"][active]).tolist()
             else:
                 chosen = [agent.act(_timestep(self.world_observation(w))) for w in active]
