@@ -55,9 +55,6 @@ def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
 # -- specs ------------------------------------------------------------------------------------------
 
 
-NOT_READ = {"nirl": {"al_expectations", "re_expectations"}, "al": {"matching"}, "re": {"matching"},
-            "scirl": {"matching"}}  # fmt: skip
-"""Learner settings an algorithm does not read: a change of their default leaves its results as they were."""
 RECORDED = {"table1_v2": ("table1_extended", {}), "table1": ("table1_fair", {}),
             "table1_nirl": ("table1_fair", {})}  # fmt: skip
 """A task file whose recorded outputs (docs/results/...) have another name, and its methods' names
@@ -105,12 +102,11 @@ def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_res
     else:
         assert sorted(saved["learners"]) == wanted, path.name
     for name, settings in now["learners"].items():
-        ignored = NOT_READ.get(settings["method"], set())
-        # resolved as a run record is: a setting added since takes the value it had before
-        old = LearnerConfig.from_record(saved["learners"][names.get(name, name)]).to_dict()
-        changed = {
-            k: (v, settings.get(k)) for k, v in old.items() if k not in ignored and settings.get(k) != v
-        }
+        # resolved as a run record is: a setting added since takes the value it had before; only
+        # what the learner reads (the loop's and its own step's settings)
+        old = LearnerConfig.from_record(saved["learners"][names.get(name, name)]).settings_read()
+        read = LearnerConfig.from_dict(settings).settings_read()
+        changed = {k: (v, read.get(k)) for k, v in old.items() if read.get(k) != v}
         assert not changed, (
             f"{path.name}: {name}'s settings changed since its results were recorded: {changed}"
         )
@@ -587,6 +583,19 @@ def test_per_run_demonstrations_final_arenas_and_only(tmp_path, capsys):
         taken = json.loads((again / "cells" / f"{ident}.json").read_text())
         assert taken["reused_from"] == str(out.resolve())
         assert taken["result"] == json.loads((out / "cells" / f"{ident}.json").read_text())["result"]
+    # a published folder (experiment.json and results.json alone) restores per-run cells too: each
+    # run's demonstrations are made again from its seed, and its test arenas checked against them
+    from nirl_mj.experiments.compare import cell_id
+    from nirl_mj.experiments.reuse import restore_published
+
+    published, lost = tmp_path / "published", tmp_path / "lost"
+    published.mkdir()
+    for name in ("experiment.json", "results.json"):
+        (published / name).write_text((out / name).read_text())
+    restored, jobs = protocol.prepare(e, lost, protocol.Execution("serial"), lambda _: None)
+    assert len(restore_published(published, e, restored, jobs, cell_id)) == 6
+    assert main([*args[:3], "--out", str(lost), *args[5:], "--json"]) == 0  # nothing left to compute
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["methods"] == last["methods"]
 
 
 def test_an_experiment_grows_by_methods_that_keep_its_test_arenas(tmp_path):

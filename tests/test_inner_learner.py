@@ -161,3 +161,38 @@ def test_network_agent_remembers_each_states_choice_without_changing_a_draw():
     assert [greedy.act(SimpleNamespace(observation={"features": phi})) for phi in visits] == [
         int(network.greedy_actions(network.q_values(net, inputs(phi[None])))[0]) for phi in visits
     ]
+
+
+@pytest.mark.parametrize("eta", [4.0, None])
+def test_network_agent_acts_on_many_worlds_at_once_as_world_by_world(eta):
+    """act_batch (the Warp backend's one call for every world) chooses what act chooses row by
+    row, Boltzmann draws included, and leaves the generator where N calls of act leave it."""
+    from types import SimpleNamespace
+
+    from nirl_mj.learn.inputs import NetworkInputs
+    from nirl_mj.learn.loop import NetworkAgent
+
+    net, inputs = network.QNetwork(17, 32, 6, seed=5), NetworkInputs(scaled=True, bearing=True)
+    states = np.random.default_rng(2).integers(0, 8, size=(300, 16)).astype(np.float32)
+    states[:, 7] = np.random.default_rng(3).integers(1, 10, size=300)  # V, the target's sector: 1..9
+    one, many = (NetworkAgent(net, inputs, eta, np.random.default_rng(11)) for _ in range(2))
+    one.reset(None, None)
+    many.reset(None, None)
+    by_world = [one.act(SimpleNamespace(observation={"features": phi})) for phi in states]
+    at_once = many.act_batch(states)
+    assert at_once.shape == (300,) and at_once.dtype == np.int64
+    assert at_once.tolist() == by_world
+    assert len(set(by_world)) > 1  # the states differ enough for the choice to vary
+    assert one.rng.random() == many.rng.random()
+
+
+def test_a_learner_reads_the_loop_and_its_own_reward_steps_settings():
+    """settings_read, what --reuse and restored cells compare: AL does not read the max-margin
+    step's decay, NIRL does; both read the loop's n_step."""
+    al, nirl = LearnerConfig().replace(method="al"), LearnerConfig().replace(method="nirl")
+    assert "mmp_step_decay" in al.to_dict() and "mmp_step_decay" not in al.settings_read()
+    assert "al_expectations" in al.settings_read() and "al_expectations" not in nirl.settings_read()
+    changed = {"mmp_step_decay": 0.1}
+    assert al.replace(**changed).settings_read() == al.settings_read()
+    assert nirl.replace(**changed).settings_read() != nirl.settings_read()
+    assert al.replace(n_step=1).settings_read() != al.settings_read()

@@ -11,9 +11,10 @@ method M and run r is taken only when all of these hold:
 - OLD's demonstrations hold the same arrays (drawn per run: the run's own; a run OLD has no
   demonstrations for is left to be computed);
 - M does not train and OLD holds M with the same definition; or M is a trained learner and OLD
-  holds a method with the same resolved learner settings (which name the variant, the algorithm
-  and every setting), of M's name (preferred) or another, as when a named variant became the
-  default: the cell is taken under M's name;
+  holds a method with the same resolved learner settings that it reads (the algorithm and every
+  setting of the loop and of its own reward step: ``LearnerConfig.settings_read``), of M's name
+  (preferred) or another, as when a named variant became the default: the cell is taken under M's
+  name;
 - run r's test arenas in OLD (held out from everything OLD's trainable methods may see) are the
   new run's test arenas.
 
@@ -112,18 +113,23 @@ def copy_run(source: Path, target: Path) -> None:
 def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     """For each method of ``experiment``, the methods of the saved experiment whose cells are its
     computation, best first. A method that does not train: its own name with the same definition.
-    A trained learner: every saved method with the same resolved learner settings (they name the
-    variant, the algorithm and every setting), its own name first, then the others by name (a
-    renamed variant)."""
+    A trained learner: every saved method with the same resolved learner settings that it reads
+    (the algorithm and the settings of the loop and of its step), its own name first, then the
+    others by name (a renamed variant)."""
+    from nirl_mj.learn.config import LearnerConfig
+
     identity = saved_form(experiment)
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
-    old_learners = resolved_learners(saved)
+    # what each learner reads: a changed default of a step that does not run changes no number
+    old_learners = {n: LearnerConfig.from_dict(f).settings_read()
+                    for n, f in resolved_learners(saved).items()}  # fmt: skip
     sources = {}
     for method in identity["methods"]:
         name, settings = method["name"], identity["learners"].get(method["name"])
         if settings is None:  # not a trained learner: its definition is what it computes
             sources[name] = [name] if old_methods.get(name) == method else []
         else:
+            settings = LearnerConfig.from_dict(settings).settings_read()
             candidates = dict.fromkeys([name, *sorted(old_learners)])  # ordered, without repeats
             sources[name] = [m for m in candidates if old_learners.get(m) == settings]
     return sources
@@ -216,7 +222,8 @@ def restore_published(
     machine: a resume then computes only the rest.
 
     The rules of :func:`reuse_cells`, but for the demonstrations, which SOURCE does not hold (they
-    are made from the shared seed and expert): the identity in the shared keys, the method's
+    are made from the experiment's seed and expert, per run where it draws them per run, as
+    ``out`` holds them): the identity in the shared keys, the method's
     definition or resolved learner settings (``rename``: take NEW's cells from SOURCE's OLD), and
     each run's test arenas. A method that is another computation is left to be computed, and said;
     a cell whose training run ``out`` already holds (an interrupted one) too. Every check is made
@@ -230,9 +237,6 @@ def restore_published(
     from nirl_mj.experiments.executors import CellStore
 
     source, rename = Path(source).resolve(), rename or {}
-    if experiment.demos_per_run:
-        raise ExperimentError(f"{source}: published cells are restored into experiments with one set "
-                              "of demonstrations; this one draws them per run ([demos] per_run)")  # fmt: skip
     try:
         saved = json.loads((source / EXPERIMENT_FILE).read_text())
         published = json.loads((source / "results.json").read_text())["cells"]

@@ -133,7 +133,7 @@ class MaxMarginConfig:
     mmp_lambda: float = 0.0  # lambda_1 of eq. 13
     mmp_steps: int = 30
     mmp_step_size: float = 0.5  # sigma_1
-    mmp_step_decay: float = 0.1  # sigma_1 / (1 + decay * i) over iterations i
+    mmp_step_decay: float = 0.0  # sigma_1 / (1 + decay * i) over iterations i (paper: constant, 0)
 
     def __post_init__(self) -> None:
         _choice("matching", self.matching, tuple(MATCHINGS))
@@ -356,6 +356,14 @@ class LearnerConfig:
         for config in self.steps.values():
             flat |= dataclasses.asdict(config)
         return flat
+
+    def settings_read(self) -> dict[str, Any]:
+        """The flat fields this learner may read: the loop's and its own reward step's (not the other
+        steps', which :meth:`to_dict` keeps; with a known ``reward_source`` no step runs, and its
+        fields are kept all the same). Two learners with equal ``settings_read()`` compute the same
+        numbers; ``nirl-mj compare --reuse`` and restored cells compare these."""
+        flat = dataclasses.asdict(self.loop)
+        return flat | dataclasses.asdict(self.step)
 
     def replace(self, **changes: Any) -> LearnerConfig:
         """A copy with flat ``changes`` (field names of the loop or of any step)."""
