@@ -8,8 +8,9 @@ Two measurements, one process:
    and on a GPU the decision is captured as a CUDA graph). ``decisions_per_s`` sums over worlds:
    decisions taken by running worlds over the wall time of :meth:`WarpWorlds.step` plus the policy.
    On a GPU each world count runs twice: replaying the CUDA graph, then launch by launch
-   (``graph=False``), which shows what the graph buys. For comparison, the same policy on the
-   dm_control task, one world, in this process.
+   (``graph=False``), which shows what the graph buys. Each row says where the timed wall went
+   (:attr:`WarpWorlds.seconds`: host or device part, and the policy's batch), in percent. For
+   comparison, the same policy on the dm_control task, one world, in this process.
 2. **Agreement** (:func:`nirl_mj.experiments.backend_check.compare_with_cpu`): the rule policy
    drives the CPU task once in each of ``--episodes`` arenas, and its actions are replayed in Warp
    worlds: ``same_outcome`` counts the episodes whose outcome matches, ``same_first_features``
@@ -53,15 +54,21 @@ def speed(worlds: int, device: str, decisions: int, graph: bool) -> dict:
     sim.reset(range(worlds), range(FIRST_SEED, FIRST_SEED + worlds))
     sim.step(rule_actions(sim.observation["features"]))  # warm-up: kernels compile, the graph is captured
     setup = time.perf_counter() - t0
-    taken, spent = 0, 0.0
+    taken, spent, policy = 0, 0.0, 0.0
+    before = dict(sim.seconds)
     for _ in range(decisions):
         t0 = time.perf_counter()
         running = int(np.count_nonzero(sim.outcomes == 0))
-        sim.step(rule_actions(sim.observation["features"]))
+        actions = rule_actions(sim.observation["features"])
+        policy += time.perf_counter() - t0
+        sim.step(actions)
         spent += time.perf_counter() - t0
         taken += running
+    parts = {name: sim.seconds[name] - before[name] for name in sim.seconds}
+    parts["policy"] = policy
+    split = {name: 100 * seconds / spent for name, seconds in parts.items() if seconds > 0}
     return {"worlds": worlds, "graph": sim.graphed, "graph_error": sim.graph_error, "decisions": taken,
-            "seconds": spent, "decisions_per_s": taken / spent, "setup_s": setup}  # fmt: skip
+            "seconds": spent, "decisions_per_s": taken / spent, "setup_s": setup, "split": split}  # fmt: skip
 
 
 def cpu_speed(decisions: int) -> float:
@@ -139,10 +146,11 @@ def main() -> None:
 def _row(result: dict, wanted: bool) -> list[str]:
     """A table row of :func:`speed`'s result (printed as it comes)."""
     graph = "yes" if result["graph"] else (f"failed: {result['graph_error']}" if wanted else "no")
+    split = ", ".join(f"{name} {share:.0f}" for name, share in result["split"].items())
     print(f"{result['worlds']} worlds, CUDA graph {graph}: {result['decisions_per_s']:.0f} decisions/s "
-          f"(setup {result['setup_s']:.0f} s)", flush=True)  # fmt: skip
+          f"(setup {result['setup_s']:.0f} s; % of the time: {split})", flush=True)  # fmt: skip
     return [str(result["worlds"]), graph, f"{result['decisions_per_s']:.0f}", f"{result['decisions']}",
-            f"{result['setup_s']:.0f}"]  # fmt: skip
+            f"{result['setup_s']:.0f}", split]  # fmt: skip
 
 
 def _card() -> str:
@@ -164,7 +172,8 @@ def _body(device: str, decisions: int, rows: list, cpu: float, check: dict, agre
         f"Device: {where}. Task {TASK}, rule policy (its batch form), every world in its own arena; "
         f"{decisions} timed decisions after one warm-up decision (kernel compilation, the CUDA graph's "
         f"capture and the resets are in `setup`).\n\n"
-        + markdown_table(["worlds", "CUDA graph", "decisions/s (all worlds)", "decisions timed", "setup (s)"],
+        + markdown_table(["worlds", "CUDA graph", "decisions/s (all worlds)", "decisions timed", "setup (s)",
+                          "% of the timed wall: part (WarpWorlds.seconds; policy: the rule's batch)"],
                          rows)
         + f"\n\nThe dm_control task, one world on one core, same process: **{cpu:.0f}** decisions/s.\n\n"
         f"Agreement with the CPU task on {check['episodes']} arenas (the rule's actions on the CPU "

@@ -620,6 +620,25 @@ def test_an_experiment_grows_by_methods_that_keep_its_test_arenas(tmp_path):
         protocol.open_output(out, experiment(["NIRL", "rule"]))
 
 
+def test_a_default_pinned_or_dropped_in_config_resumes_the_same_output(tmp_path):
+    """Pinning a learner setting at the value it already has (in [config] or a method's config)
+    changes no cell, so the output directory resumes; a value that changes a learner is refused."""
+    base = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = ["NIRL", "n1"]\n'
+    gamma = LearnerConfig().loop.gamma
+
+    def experiment(n1: str = "n_step = 1", config: str = ""):
+        spec = tmp_path / "pins.toml"
+        spec.write_text(base + f'[method.n1]\nkind = "irl"\nconfig = {{ {n1} }}\n' + TINY + config)
+        return load_experiment(spec)
+
+    out = protocol.open_output(tmp_path / "out", experiment())
+    assert protocol.open_output(out, experiment(f"n_step = 1, gamma = {gamma}", f"gamma = {gamma}\n")) == out
+    assert json.loads((out / "experiment.json").read_text())["config"]["gamma"] == gamma
+    assert protocol.open_output(out, experiment()) == out
+    with pytest.raises(ExperimentError, match="differs in: learners"):
+        protocol.open_output(out, experiment(config="gamma = 0.5\n"))
+
+
 def test_fig8_strip_is_written_from_the_first_run(tmp_path):
     head = ('kind = "compare"\ntest_task = "dynamic"\nruns = 1\ntests = 1\nmethods = ["rule"]\n'
             '[strip]\nmethod = "rule"\nsnapshots = 3\nwidth = 64\nheight = 48\n')  # fmt: skip

@@ -15,8 +15,10 @@ from nirl_mj.learn.mmp import (
 )
 from nirl_mj.learn.network import (
     QNetwork,
+    boltzmann_cdf,
     boltzmann_probabilities,
     cross_entropy_cost,
+    draw_actions,
     get_weights,
     gradient_step,
     greedy_actions,
@@ -128,6 +130,22 @@ def test_sample_action_frequencies_and_determinism():
     r1, r2 = np.random.default_rng(5), np.random.default_rng(5)
     assert [sample_action(q, eta, r1) for _ in range(50)] == [sample_action(q, eta, r2) for _ in range(50)]
     assert sample_action(np.array([0.2, 0.9, 0.1]), 1e4, rng) == 1
+
+
+def test_draw_actions_is_row_by_row_inverse_cdf_spending_one_draw_per_row():
+    q = np.random.default_rng(1).normal(size=(200, 6))
+    cdf = np.stack([boltzmann_cdf(row, 3.0) for row in q])
+    cdf[0] = [0.0, 0.0, 0.5, 0.5, 1.0, 1.0]  # zero-probability actions and a plateau: never drawn
+    at_once = draw_actions(cdf, np.random.default_rng(9))
+    rng = np.random.default_rng(9)
+    by_row = [int(np.searchsorted(row, rng.random() * row[-1], side="right")) for row in cdf]
+    assert at_once.tolist() == [min(a, 5) for a in by_row]
+    assert at_once[0] in (2, 4) and at_once.dtype == np.int64
+    # N rows spend the generator as N single draws: the next draw is the same
+    rng_batch, rng_rows = np.random.default_rng(9), np.random.default_rng(9)
+    draw_actions(cdf, rng_batch)
+    [rng_rows.random() for _ in cdf]
+    assert rng_batch.random() == rng_rows.random()
 
 
 def test_greedy_eq9_ties_lowest_index():

@@ -81,6 +81,22 @@ def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
     np.testing.assert_allclose(worlds._mw.body_pos.numpy()[2][used], model.body_pos[used], atol=1e-5)
 
 
+def test_the_seconds_split_names_every_part_and_stays_within_the_wall_time(worlds):
+    import time
+
+    from nirl_mj.sim.warp_worlds import SECONDS
+
+    before = dict(worlds.seconds)
+    t0 = time.perf_counter()
+    worlds.reset(range(4), SEEDS)
+    worlds.step([0, 1, 2, 3])
+    wall = time.perf_counter() - t0
+    spent = {name: worlds.seconds[name] - before[name] for name in SECONDS}
+    assert set(worlds.seconds) == set(SECONDS)
+    assert all(seconds > 0 for seconds in spent.values()), spent  # each part ran, once per reset or step
+    assert sum(spent.values()) <= wall  # disjoint parts of the same wall time
+
+
 def test_batched_rollouts_of_the_rule_reproduce_its_cpu_success(worlds):
     seeds = [1000, 1001, 1002, 1003, 1004, 1005]  # more seeds than worlds: finished worlds restart
     cpu, cpu_runs = evaluate(make_env(SMALL), rule_policy, seeds, "rule")

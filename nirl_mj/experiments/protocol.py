@@ -67,7 +67,9 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
     """Creates OUT for ``experiment``, or re-opens it to resume the same experiment.
 
     Refuses a non-empty directory of another experiment (naming the keys that differ)
-    or of anything else. Returns OUT as an absolute path: cells may run in another
+    or of anything else. Methods may be added (:func:`grows`), and learner changes spelled
+    otherwise with the same resolved settings (a default's value pinned in ``[config]``) are the same
+    experiment. Returns OUT as an absolute path: cells may run in another
     working directory (Ray workers do)."""
     out = Path(out).resolve()
     marker = out / EXPERIMENT_FILE
@@ -79,18 +81,19 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
         if not isinstance(saved, dict):
             raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
-        differ = sorted(k for k in identity if saved.get(k) != identity.get(k))
-        if differ and set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs):
-            from nirl_mj.data.atomic import write_text
-
-            write_text(marker, json.dumps(identity, indent=1))  # the experiment grew by new methods
-            return out
-        if differ:
+        differ = sorted(k for k in identity if _unspelled(saved).get(k) != _unspelled(identity).get(k))
+        if differ and not (
+            set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
+        ):
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "
                 "runs' test arenas stay the same; none may change or go)"
             )
+        if saved != identity:  # grown by new methods, or the same learners spelled otherwise
+            from nirl_mj.data.atomic import write_text
+
+            write_text(marker, json.dumps(identity, indent=1))
         return out
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ExperimentError(f"{out} exists and holds no nirl-mj experiment; choose another --out")
@@ -99,6 +102,20 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
 
     write_text(marker, json.dumps(identity, indent=1))
     return out
+
+
+def _unspelled(identity: dict) -> dict:
+    """``identity`` without the learner changes as the file spells them (the experiment's
+    ``[config]`` and each learner's ``config``): its resolved ``learners`` hold what they change, so
+    a value the default already has, pinned in ``[config]`` or dropped from it, changes no cell."""
+    learners = identity.get("learners", {})
+
+    def unspelled(method: Any) -> Any:
+        trains = isinstance(method, dict) and method.get("name") in learners
+        return {k: v for k, v in method.items() if k != "config"} if trains else method
+
+    methods = [unspelled(m) for m in identity.get("methods", [])]
+    return {**{k: v for k, v in identity.items() if k != "config"}, "methods": methods}
 
 
 def resolved_learners(saved: dict) -> dict[str, dict]:
@@ -123,8 +140,8 @@ def grows(saved: dict, identity: dict, runs: int) -> bool:
     from nirl_mj.experiments.training import planned_seeds
     from nirl_mj.learn.config import LearnerConfig
 
-    new_methods = identity["methods"]
-    if any(m not in new_methods for m in saved.get("methods", [])):
+    new_methods = _unspelled(identity)["methods"]
+    if any(m not in new_methods for m in _unspelled(saved)["methods"]):
         return False
     old, new = resolved_learners(saved), identity["learners"]
     if any(new.get(name) != flat for name, flat in old.items()):

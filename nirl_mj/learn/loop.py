@@ -94,9 +94,7 @@ class NetworkAgent:
         if self.eta is None:
             return network.greedy_actions(q).astype(np.int64)
         cdf = np.cumsum(network.boltzmann_probabilities(q, self.eta), axis=-1)
-        u = self.rng.random(len(phi)) * cdf[:, -1]
-        # np.searchsorted(cdf, u, side="right") row by row, as network.draw_action
-        return np.minimum((cdf <= u[:, None]).sum(axis=1), cdf.shape[1] - 1).astype(np.int64)
+        return network.draw_actions(cdf, self.rng)
 
 
 def demonstrated_pairs(demos: list[Trajectory]) -> tuple[np.ndarray, np.ndarray]:

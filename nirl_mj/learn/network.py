@@ -135,9 +135,16 @@ def boltzmann_cdf(q_row: np.ndarray, eta: float) -> np.ndarray:
 
 
 def draw_action(cdf: np.ndarray, rng: np.random.Generator) -> int:
-    """One action index from a :func:`boltzmann_cdf`, by one ``rng.random()`` draw (inverse CDF)."""
-    idx = int(np.searchsorted(cdf, rng.random() * cdf[-1], side="right"))
-    return min(idx, cdf.size - 1)
+    """One action index from a :func:`boltzmann_cdf` (A,), by one ``rng.random()`` draw (inverse CDF)."""
+    return int(draw_actions(np.asarray(cdf)[None], rng)[0])
+
+
+def draw_actions(cdf: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One action index per row of CDFs (N, A) -> (N,) int64, one ``rng.random()`` per row in row
+    order (inverse CDF), so N rows spend the generator as N calls of :func:`draw_action` would."""
+    u = rng.random(len(cdf)) * cdf[:, -1]
+    # the count of entries <= u is np.searchsorted(row, u, side="right") on a non-decreasing row
+    return np.minimum((cdf <= u[:, None]).sum(axis=1), cdf.shape[1] - 1).astype(np.int64)
 
 
 def greedy_actions(q: np.ndarray) -> np.ndarray:

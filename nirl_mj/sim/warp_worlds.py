@@ -56,6 +56,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
+import time
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -88,6 +89,15 @@ _STATE_FIELDS = ("qpos", "qvel", "ctrl", "geom_xpos", "geom_xmat")
 """Data fields a world's start copies from the reference. Warp computes the poses of geoms fixed to
 the world once (``make_data``), not in every ``kinematics`` as MuJoCo does: the obstacle slots'
 poses, which change with every arena, are copied with the state."""
+
+SECONDS = {
+    "resets": "host: the reference task lays out each new arena, copied into the device (reset)",
+    "commands": "host: each running world's drive plans its wheel commands (step)",
+    "physics": "device: the decision's physics steps and outcome checks, read back (step)",
+    "rays": "device: every world's rays from its read-back pose, read back (sensing)",
+    "features": "host: ranges, danger levels and phi(s) from the rays, on the batch (sensing)",
+}
+"""The parts of :attr:`WarpWorlds.seconds`: where a step's wall time goes, host or device."""
 
 DEVICES = ("cpu", "cuda")
 """Warp's devices: its CPU device (slow: tests) or a CUDA GPU."""
@@ -132,7 +142,8 @@ class WarpWorlds:
 
     State, per world: :attr:`seeds` (the arena of its episode), :attr:`steps` (decisions taken),
     :attr:`outcomes` (an :class:`Outcome` value, or :data:`IDLE`) and :attr:`observation` (the
-    task's observation keys, each with a leading world axis).
+    task's observation keys, each with a leading world axis), and :attr:`seconds`, where the wall time
+    of :meth:`step` and :meth:`reset` went.
     """
 
     def __init__(
@@ -231,6 +242,9 @@ class WarpWorlds:
         self._targets = np.tile(np.asarray(task_.layout.target, dtype=np.float64), (self.n, 1))
         self._start_z = np.zeros(self.n)
         self.observation: dict[str, np.ndarray] = {}
+        self.seconds = dict.fromkeys(SECONDS, 0.0)
+        """Wall seconds spent so far, by part (:data:`SECONDS`); device parts end with a read back to
+        the host, so they hold the device's work, not only its launch."""
 
     # -- episodes ----------------------------------------------------------------------
 
@@ -242,6 +256,7 @@ class WarpWorlds:
         if worlds.shape != seeds.shape or np.any((worlds < 0) | (worlds >= self.n)):
             raise ValueError(f"reset: worlds (0..{self.n - 1}) and seeds must pair up, got {worlds}, {seeds}")
         wp, mjw, dw = self._wp, self._mjw, self._dw
+        started = time.perf_counter()
         mask = np.zeros(self.n, dtype=bool)
         mask[worlds] = True
         with wp.ScopedDevice(self.device):
@@ -268,6 +283,7 @@ class WarpWorlds:
             self._start_z_w.assign(self._start_z.astype(np.float32))
             self._outcome_w.assign(self.outcomes)
             mjw.forward(self._mw, dw)
+        self.seconds["resets"] += time.perf_counter() - started
         self._sense()
 
     def step(self, actions: Sequence[Any]) -> None:
@@ -277,6 +293,7 @@ class WarpWorlds:
         if len(actions) != self.n:
             raise ValueError(f"step: one action per world ({self.n}), got {len(actions)}")
         wp, control = self._wp, self.spec.control
+        started = time.perf_counter()
         running = self.outcomes == int(Outcome.RUNNING)
         commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
         bounds = continuous_action_spec(self.spec) if control.actions == "continuous" else None
@@ -294,11 +311,14 @@ class WarpWorlds:
                 )  # fmt: skip
             commands[:, w] = body_twist(plan) if self._planar else plan
         dw = self._dw
+        planned = time.perf_counter()
+        self.seconds["commands"] += planned - started
         with wp.ScopedDevice(self.device):
             self._commands.assign(commands)
             self._run_decision()
             outcomes = self._outcome_w.numpy()
             overflow = dw.overflow.numpy() & _BUFFER_OVERFLOWS
+        self.seconds["physics"] += time.perf_counter() - planned
         if overflow.any():
             contacts, rows = int(dw.nacon.numpy()[0]), int(dw.nefc.numpy().max())
             raise RuntimeError(
@@ -379,6 +399,7 @@ class WarpWorlds:
         """Casts every world's rays and builds its observation (the task's keys that a
         trajectory and a policy on phi(s) read)."""
         wp, mjw, dw, spec = self._wp, self._mjw, self._dw, self.spec
+        started = time.perf_counter()
         # A state that went non-finite (a physics error) reads as zeros: no NaN reaches numpy below.
         qpos = np.nan_to_num(dw.qpos.numpy().astype(np.float64))
         origin = np.nan_to_num(dw.site_xpos.numpy()[:, self._origin].astype(np.float64))
@@ -404,6 +425,8 @@ class WarpWorlds:
             )  # fmt: skip
             dist = self._ray_dist.numpy().astype(np.float64)
             geom = self._ray_geom.numpy()
+        cast = time.perf_counter()
+        self.seconds["rays"] += cast - started
         sensing = spec.sensing
         k = spec.robot.rays_per_sensor
         ranges, rays, wall = sensor_readings(
@@ -428,6 +451,7 @@ class WarpWorlds:
             "outcome": self.outcomes[:, None].copy(),
             "steps": self.steps[:, None].astype(np.int32),
         }
+        self.seconds["features"] += time.perf_counter() - cast
 
     def world_observation(self, w: int) -> dict[str, np.ndarray]:
         """World ``w``'s observation, as the dm_env task's dict (the keys of :attr:`observation`)."""
