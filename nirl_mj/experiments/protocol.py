@@ -90,7 +90,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "
                 "runs' test arenas stay the same; none may change or go)"
             )
-        if saved != identity:  # grown by new methods, or the same learners spelled otherwise
+        if differ:  # grown by new methods (the same learners spelled otherwise keep what they were)
             from nirl_mj.data.atomic import write_text
 
             write_text(marker, json.dumps(identity, indent=1))

@@ -91,11 +91,15 @@ the world once (``make_data``), not in every ``kinematics`` as MuJoCo does: the 
 poses, which change with every arena, are copied with the state."""
 
 SECONDS = {
-    "resets": "host: the reference task lays out each new arena, copied into the device (reset)",
+    "resets": "mostly host: the reference task lays out each new arena, copied into the device, whose "
+    "reset and forward pass are waited for (reset)",
     "commands": "host: each running world's drive plans its wheel commands (step)",
-    "physics": "device: the decision's physics steps and outcome checks, read back (step)",
-    "rays": "device: every world's rays from its read-back pose, read back (sensing)",
-    "features": "host: ranges, danger levels and phi(s) from the rays, on the batch (sensing)",
+    "physics": "device: the commands copied in, the decision's physics steps and outcome checks, read "
+    "back (step)",
+    "rays": "device: the rays' origins and directions copied in, every world's rays cast, read back "
+    "(sensing)",
+    "features": "host: the poses read back, the rays' directions, then ranges, danger levels and phi(s) "
+    "from the rays, on the batch (sensing)",
 }
 """The parts of :attr:`WarpWorlds.seconds`: where a step's wall time goes, host or device."""
 
@@ -283,6 +287,7 @@ class WarpWorlds:
             self._start_z_w.assign(self._start_z.astype(np.float32))
             self._outcome_w.assign(self.outcomes)
             mjw.forward(self._mw, dw)
+            wp.synchronize_device(self.device)  # so that its kernels' time is counted here
         self.seconds["resets"] += time.perf_counter() - started
         self._sense()
 
@@ -415,6 +420,7 @@ class WarpWorlds:
         vec = np.zeros((self.n, self._angles.size + 1, 3))
         vec[:, :-1, 0], vec[:, :-1, 1] = np.cos(world), np.sin(world)
         vec[:, -1, :2] = to_target / np.maximum(target_distance, 1e-9)[:, None]
+        cast = time.perf_counter()
         with wp.ScopedDevice(self.device):
             self._ray_pnt.assign(np.repeat(origin[:, None, :], vec.shape[1], axis=1).astype(np.float32))
             self._ray_vec.assign(vec.astype(np.float32))
@@ -425,8 +431,8 @@ class WarpWorlds:
             )  # fmt: skip
             dist = self._ray_dist.numpy().astype(np.float64)
             geom = self._ray_geom.numpy()
-        cast = time.perf_counter()
-        self.seconds["rays"] += cast - started
+        read = time.perf_counter()
+        self.seconds["rays"] += read - cast
         sensing = spec.sensing
         k = spec.robot.rays_per_sensor
         ranges, rays, wall = sensor_readings(
@@ -451,7 +457,7 @@ class WarpWorlds:
             "outcome": self.outcomes[:, None].copy(),
             "steps": self.steps[:, None].astype(np.int32),
         }
-        self.seconds["features"] += time.perf_counter() - cast
+        self.seconds["features"] += (cast - started) + (time.perf_counter() - read)
 
     def world_observation(self, w: int) -> dict[str, np.ndarray]:
         """World ``w``'s observation, as the dm_env task's dict (the keys of :attr:`observation`)."""
