@@ -74,6 +74,16 @@ DECAY = "2026-11-27 (decaying step)"
 measured at: today's but for the max-margin step, which decayed (``mmp_step_decay = 0.1``; removed
 after them, :data:`REMOVED`)."""
 
+
+def undone(ablated: str, note: str = DEV) -> tuple[Ablation, Ablation]:
+    """A departure undone alone on the same development runs at today's default
+    (tasks/ablations/departures_today.toml) and at the decaying step's (tasks/ablations/departures.toml)."""
+    return (
+        Ablation("departures_today", ablated, "NIRL", note=note),
+        Ablation("departures", ablated, "NIRL", at=DECAY, note=note),
+    )
+
+
 DEPARTURES: tuple[Departure, ...] = (
     Departure(
         '**Reward features** `reward_features = "bearing"`: per action the block [D/7, one-hot V, cos and '
@@ -83,12 +93,7 @@ DEPARTURES: tuple[Departure, ...] = (
         'prefer "turn towards the target\'s sector" and a constant to prefer an action as such; (cos, sin) '
         "carry that preference to the sectors behind the robot, which the expert almost never saw",
         (
-            Ablation(
-                "departures_today", "features-paper", "NIRL", note=f"phi(s) in the action's block; {DEV}"
-            ),
-            Ablation(
-                "departures", "features-paper", "NIRL", at=DECAY, note=f"phi(s) in the action's block; {DEV}"
-            ),
+            *undone("features-paper", f"phi(s) in the action's block; {DEV}"),
             Ablation(
                 "table1_nirl_onehot",
                 "NIRL",
@@ -136,20 +141,14 @@ DEPARTURES: tuple[Departure, ...] = (
         "**Margin loss** `margin_loss = 0.1`; paper: 1",
         f"with features in [0, 1] and {BALL} a margin of 1 cannot be met, and the step becomes a "
         'majority-class classifier ("forward")',
-        (
-            Ablation("departures_today", "margin-1", "NIRL", note=DEV),
-            Ablation("departures", "margin-1", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("margin-1"),),
     ),
     Departure(
         "**Reward scaling** `reward_scaling = true`: the replay window's rewards mapped affinely into "
         "[0, 1 - gamma]; paper: theta^T f as it is, targets outside [0, 1] clipped",
         "the sigmoid Q lives in (0, 1): raw rewards put most targets outside it, and the network learns "
         "their sign",
-        (
-            Ablation("departures_today", "raw-rewards", "NIRL", note=DEV),
-            Ablation("departures", "raw-rewards", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("raw-rewards"),),
     ),
     Departure(
         '**The value of an episode\'s end** `terminal_value = "learned"` (`learn/terminal.py`); paper '
@@ -164,8 +163,7 @@ DEPARTURES: tuple[Departure, ...] = (
                 at=DECAY,
                 note="the task's outcome instead: an arrival worth 1, other ends 0; development arenas",
             ),
-            Ablation("departures_today", "end-0", "NIRL", note=f"every end worth 0; {DEV}"),
-            Ablation("departures", "end-0", "NIRL", at=DECAY, note=f"every end worth 0; {DEV}"),
+            *undone("end-0", f"every end worth 0; {DEV}"),
         ),
     ),
     Departure(
@@ -173,17 +171,13 @@ DEPARTURES: tuple[Departure, ...] = (
         "pair taken (eq. 14)",
         "the greedy policy is the one reported, so its values are the ones to learn; SARSA's targets value "
         "the exploring Boltzmann policy, which collides",
-        (
-            Ablation("departures_today", "sarsa", "NIRL", note=DEV),
-            Ablation("departures", "sarsa", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("sarsa"),),
     ),
     Departure(
         "**3-step targets** `n_step = 3`, cut at the trajectory's end; paper: 1",
         "an end (arrival or collision) reaches the pairs that led to it three times faster",
         (
-            Ablation("departures_today", "n1", "NIRL", note=DEV),
-            Ablation("departures", "n1", "NIRL", at=DECAY, note=DEV),
+            *undone("n1"),
             Ablation(
                 "paper_steps", "step-const-n1", "NIRL", at=DECAY, note=f"with the constant step too; {DEV}"
             ),
@@ -192,35 +186,23 @@ DEPARTURES: tuple[Departure, ...] = (
     Departure(
         "**Discount** `gamma = 0.9`, in the targets and the reward step's suffix sums; paper: 0.65",
         "0.65 sees about three decisions ahead: too short to value a detour around an obstacle",
-        (
-            Ablation("departures_today", "gamma-065", "NIRL", note=DEV),
-            Ablation("departures", "gamma-065", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("gamma-065"),),
     ),
     Departure(
         "**Hidden units** `hidden_units = 32`; paper: 10",
         "more room for the values of six actions; still a small share of the simulation's cost",
-        (
-            Ablation("departures_today", "hidden-10", "NIRL", note=DEV),
-            Ablation("departures", "hidden-10", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("hidden-10"),),
     ),
     Departure(
         "**Input scaling** `input_scaling = true`: D/7 (and V/9 without the next row); paper: raw phi(s)",
         "D (0..7) and V (1..9) brought to the scale of the 0/1 flags I and U, for sigmoid units",
-        (
-            Ablation("departures_today", "raw-inputs", "NIRL", note=f"the bearing inputs kept; {DEV}"),
-            Ablation("departures", "raw-inputs", "NIRL", at=DECAY, note=f"the bearing inputs kept; {DEV}"),
-        ),
+        (*undone("raw-inputs", f"the bearing inputs kept; {DEV}"),),
     ),
     Departure(
         "**Bearing inputs** `input_bearing = true`: (cos, sin) of V's sector centre in V's place, 17 inputs",
         'on V/9 "target behind on the left" (5/9) and "behind on the right" (6/9) are neighbours, where '
         "the right actions are opposite; with (cos, sin) they differ in the sign of one input",
-        (
-            Ablation("departures_today", "no-bearing-in", "NIRL", note=f"V/9 inputs; {DEV}"),
-            Ablation("departures", "no-bearing-in", "NIRL", at=DECAY, note=f"V/9 inputs; {DEV}"),
-        ),
+        (*undone("no-bearing-in", f"V/9 inputs; {DEV}"),),
     ),
     Departure(
         "**Experience replay** `replay_episodes = 10`, `net_epochs = 4`, `batch_size = 64`: minibatch "
@@ -228,31 +210,14 @@ DEPARTURES: tuple[Departure, ...] = (
         "steps",
         "one iteration's pairs are too few to learn from (measured on the project's 2-D prototype "
         "before this code)",
-        (
-            Ablation(
-                "departures_today",
-                "no-replay",
-                "NIRL",
-                note=f"20 full-batch epochs on this iteration's pairs; {DEV}",
-            ),
-            Ablation(
-                "departures",
-                "no-replay",
-                "NIRL",
-                at=DECAY,
-                note=f"20 full-batch epochs on this iteration's pairs; {DEV}",
-            ),
-        ),
+        (*undone("no-replay", f"20 full-batch epochs on this iteration's pairs; {DEV}"),),
     ),
     Departure(
         "**Exploration** eta from 5 to 60, linearly over the iterations (`eta`, `eta_final`); paper preset: "
         "10 throughout (the paper gives no value)",
         "a high eta from the start never tries the actions the random initial network undervalues; a low "
         "one tries everything, a high one exploits",
-        (
-            Ablation("departures_today", "eta-10", "NIRL", note=DEV),
-            Ablation("departures", "eta-10", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("eta-10"),),
     ),
     Departure(
         '**Selection** `selection = "demo_balanced"`: the kept policy whose greedy actions predict the '
@@ -276,10 +241,7 @@ DEPARTURES: tuple[Departure, ...] = (
         "**Budget** `episodes = 60`, `epsilon = -inf` (the margin t is reported, never a stop); paper "
         "preset: 120 iterations, stop when t <= 0",
         "a run stays within minutes on one core",
-        (
-            Ablation("departures_today", "iter-120", "NIRL", note=DEV),
-            Ablation("departures", "iter-120", "NIRL", at=DECAY, note=DEV),
-        ),
+        (*undone("iter-120"),),
     ),
     Departure(
         '**All of the above** undone: `--variant paper` (`learn/config.py`, `PRESETS["paper"]`)',

@@ -81,7 +81,8 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
         if not isinstance(saved, dict):
             raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
-        differ = sorted(k for k in identity if _unspelled(saved).get(k) != _unspelled(identity).get(k))
+        was, now = _unspelled(saved), _unspelled(identity)
+        differ = sorted(k for k in identity if was.get(k) != now.get(k))
         if differ and not (
             set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
         ):
