@@ -794,6 +794,16 @@ def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_compu
         restore_published(published, other, out, jobs, cell_id)
     with pytest.raises(ExperimentError, match="not a published experiment"):
         restore_published(tmp_path / "nowhere", experiment, out, jobs, cell_id)
+    # A published learner with a retired setting at a value that did something is no source, and
+    # the rest is still restored (its arenas were chosen without that setting).
+    saved = json.loads((published / "experiment.json").read_text())
+    saved["learners"]["retired"] = {**saved["learners"]["NIRL-policy"], "reward_ceiling": 0.5}
+    (published / "experiment.json").write_text(json.dumps(saved))
+    again, again_jobs = prepare(experiment, tmp_path / "again", Execution("serial"), lambda _: None)
+    assert restore_published(published, experiment, again, again_jobs, cell_id, log=said.append) == [
+        "rule-run000",
+        "rule-run001",
+    ]
 
 
 def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_new_name(tmp_path, capsys):

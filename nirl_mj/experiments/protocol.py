@@ -119,18 +119,23 @@ def _unspelled(identity: dict) -> dict:
     return {**{k: v for k, v in identity.items() if k != "config"}, "methods": methods}
 
 
-def resolved_learners(saved: dict) -> dict[str, dict]:
+def resolved_learners(saved: dict, skip_unreadable: bool = False) -> dict[str, dict]:
     """A saved identity's learners, each resolved as its run records are (a setting added since it
-    was saved takes the value it had then: ``LearnerConfig.from_record``)."""
+    was saved takes the value it had then: ``LearnerConfig.from_record``). A learner this version
+    cannot read (a retired setting at a value that did something) is an error, or with
+    ``skip_unreadable`` left out: it cannot be the computation of any learner of this version."""
     from nirl_mj.learn.config import LearnerConfig
 
-    learners = saved.get("learners", {})
-    try:
-        return {name: LearnerConfig.from_record(flat).to_dict() for name, flat in learners.items()}
-    except (TypeError, ValueError) as exc:
-        raise ExperimentError(
-            f"the saved experiment's learners cannot be read by this version: {exc}"
-        ) from None
+    resolved = {}
+    for name, flat in saved.get("learners", {}).items():
+        try:
+            resolved[name] = LearnerConfig.from_record(flat).to_dict()
+        except (TypeError, ValueError) as exc:
+            if not skip_unreadable:
+                raise ExperimentError(
+                    f"the saved experiment's learners cannot be read by this version: {exc}"
+                ) from None
+    return resolved
 
 
 def grows(saved: dict, identity: dict, runs: int) -> bool:

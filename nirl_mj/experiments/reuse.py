@@ -61,11 +61,13 @@ def old_test_seeds(saved: dict, seed: int, tests: int, demo_seeds: set[int]) -> 
     and from every arena its trainable methods (``saved["learners"]``) may see."""
     from nirl_mj.experiments.seeds import held_out_seeds
     from nirl_mj.experiments.training import planned_seeds
-    from nirl_mj.learn.config import LearnerConfig
+    from nirl_mj.learn.config import RETIRED, LearnerConfig
 
     seen = set(demo_seeds)
     for flat in saved.get("learners", {}).values():
-        seen |= planned_seeds(LearnerConfig.from_record(flat), seed)
+        # a retired setting (a reward transform, a weight average) never chose an arena
+        current = {k: v for k, v in flat.items() if k not in RETIRED}
+        seen |= planned_seeds(LearnerConfig.from_record(current), seed)
     return held_out_seeds(seed, tests, seen, saved.get("test_domain", "test"))
 
 
@@ -120,9 +122,10 @@ def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
 
     identity = saved_form(experiment)
     old_methods = {m["name"]: m for m in saved.get("methods", [])}
-    # what each learner reads: a changed default of a step that does not run changes no number
+    # what each learner reads: a changed default of a step that does not run changes no number;
+    # a learner with a retired setting computes nothing this version can, so it is no source
     old_learners = {n: LearnerConfig.from_dict(f).settings_read()
-                    for n, f in resolved_learners(saved).items()}  # fmt: skip
+                    for n, f in resolved_learners(saved, skip_unreadable=True).items()}  # fmt: skip
     sources = {}
     for method in identity["methods"]:
         name, settings = method["name"], identity["learners"].get(method["name"])

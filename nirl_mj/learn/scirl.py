@@ -16,7 +16,7 @@ classifier, and trains it to predict the expert's actions. The algorithm, in the
    L = 0 for the expert's action and l otherwise; minimised by subgradient descent,
    subgradient (1/N) sum_i [mu_hat(s_i, a*_i) - mu_hat(s_i, a_i)], a*_i the loss-augmented argmax.
    As the authors' code: theta_0 = 0, the subgradient normalised, step c / (k + 1) (c = 3), 40 steps.
-4. r_theta = theta^T f; then any RL algorithm (here the shared loop's neural SARSA).
+4. r_theta = theta^T f; then any RL algorithm (here the shared loop's neural value learning).
 
 Readings, each with its reason (docs/ALGORITHM.md, "The baselines"):
 
@@ -28,7 +28,10 @@ Readings, each with its reason (docs/ALGORITHM.md, "The baselines"):
 - The iterate kept is the one with the lowest J (the authors' code keeps the smallest subgradient
   norm; inside a ball the subgradient need not vanish at the optimum, which lies on the boundary).
 - SCIRL never reads the learner's rollouts: theta is computed at the first update and stays fixed;
-  the loop then learns the policy by SARSA on that reward, the model-free RL of step 4.
+  the loop then learns the policy on that reward by its value targets, the model-free RL of step 4.
+- gamma is the loop's (``LoopConfig.gamma``). Step 2's margin weighs the pair itself by 1 - gamma,
+  so the discount matters more here than elsewhere; the comparisons' SCIRL row runs the paper's 0.65,
+  tuned on the development domain (``experiments/definition.py``, tasks/ablations/scirl_tuning.toml).
 """
 
 from __future__ import annotations
