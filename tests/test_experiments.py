@@ -794,16 +794,26 @@ def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_compu
         restore_published(published, other, out, jobs, cell_id)
     with pytest.raises(ExperimentError, match="not a published experiment"):
         restore_published(tmp_path / "nowhere", experiment, out, jobs, cell_id)
-    # A published learner with a retired setting at a value that did something is no source, and
-    # the rest is still restored (its arenas were chosen without that setting).
+    # A published NIRL with a retired setting at a value that did something is not today's NIRL: its
+    # cells are left to be computed, and the rest is restored (arenas are chosen without that setting).
     saved = json.loads((published / "experiment.json").read_text())
-    saved["learners"]["retired"] = {**saved["learners"]["NIRL-policy"], "reward_ceiling": 0.5}
+    saved["learners"]["NIRL"] = {**saved["learners"]["NIRL-policy"], "reward_ceiling": 0.5}
+    policy_method = next(m for m in saved["methods"] if m["name"] == "NIRL-policy")
+    saved["methods"].append({**policy_method, "name": "NIRL"})
     (published / "experiment.json").write_text(json.dumps(saved))
+    results = json.loads((published / "results.json").read_text())
+    for r in (0, 1):
+        results["cells"][f"NIRL-run00{r}"] = {**results["cells"][f"NIRL-policy-run00{r}"], "method": "NIRL"}
+    (published / "results.json").write_text(json.dumps(results))
     again, again_jobs = prepare(experiment, tmp_path / "again", Execution("serial"), lambda _: None)
-    assert restore_published(published, experiment, again, again_jobs, cell_id, log=said.append) == [
-        "rule-run000",
-        "rule-run001",
-    ]
+    said.clear()
+    taken = restore_published(published, experiment, again, again_jobs, cell_id, log=said.append)
+    assert taken == ["rule-run000", "rule-run001"] and "not taken" in said[0] and "NIRL" in said[0]
+    # A learner this version cannot read for another reason is still a clear error.
+    saved["learners"]["NIRL"] = {**saved["learners"]["NIRL-policy"], "no_such_setting": 1}
+    (published / "experiment.json").write_text(json.dumps(saved))
+    with pytest.raises(ExperimentError, match="cannot be read by this version"):
+        restore_published(published, experiment, again, again_jobs, cell_id)
 
 
 def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_new_name(tmp_path, capsys):

@@ -129,7 +129,10 @@ BUILTIN_METHODS = {
     # actions that never reads the learner's rollouts (docs/ALGORITHM.md)
     "NIRL-classifier": MethodSpec("NIRL-classifier", "irl", "default", "nirl", {"matching": "occupancy"}),
     "AL": MethodSpec("AL", "irl", "default", "al"),  # per-state reading (learn/al.py)
-    "RE": MethodSpec("RE", "irl", "default", "re"),  # per-state reading (learn/reirl.py)
+    # per-state reading (learn/reirl.py) without the L1 term (re_confidence = 0: Hoeffding widths of 0,
+    # a conditional logit of the expert's actions): tuned on the development domain
+    # (tasks/ablations/baselines_discount.toml); the widths zeroed all but two components of theta
+    "RE": MethodSpec("RE", "irl", "default", "re", {"re_confidence": 0.0}),
     # the whole-trajectory reading of eq. 11 (the papers'; the default rows until 2026-11-25)
     "AL-traj": MethodSpec("AL-traj", "irl", "default", "al", {"al_expectations": "trajectory"}),
     "RE-traj": MethodSpec("RE-traj", "irl", "default", "re", {"re_expectations": "trajectory"}),

@@ -119,19 +119,20 @@ def _unspelled(identity: dict) -> dict:
     return {**{k: v for k, v in identity.items() if k != "config"}, "methods": methods}
 
 
-def resolved_learners(saved: dict, skip_unreadable: bool = False) -> dict[str, dict]:
+def resolved_learners(saved: dict, skip_retired: bool = False) -> dict[str, dict]:
     """A saved identity's learners, each resolved as its run records are (a setting added since it
     was saved takes the value it had then: ``LearnerConfig.from_record``). A learner this version
-    cannot read (a retired setting at a value that did something) is an error, or with
-    ``skip_unreadable`` left out: it cannot be the computation of any learner of this version."""
-    from nirl_mj.learn.config import LearnerConfig
+    cannot read is an error; with ``skip_retired``, one that holds a retired setting at a value that
+    did something (``learn/config.py`` RETIRED) is left out instead: it cannot be the computation of
+    any learner of this version."""
+    from nirl_mj.learn.config import LearnerConfig, holds_retired
 
     resolved = {}
     for name, flat in saved.get("learners", {}).items():
         try:
             resolved[name] = LearnerConfig.from_record(flat).to_dict()
         except (TypeError, ValueError) as exc:
-            if not skip_unreadable:
+            if not (skip_retired and holds_retired(flat)):
                 raise ExperimentError(
                     f"the saved experiment's learners cannot be read by this version: {exc}"
                 ) from None

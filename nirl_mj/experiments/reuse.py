@@ -125,7 +125,7 @@ def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     # what each learner reads: a changed default of a step that does not run changes no number;
     # a learner with a retired setting computes nothing this version can, so it is no source
     old_learners = {n: LearnerConfig.from_dict(f).settings_read()
-                    for n, f in resolved_learners(saved, skip_unreadable=True).items()}  # fmt: skip
+                    for n, f in resolved_learners(saved, skip_retired=True).items()}  # fmt: skip
     sources = {}
     for method in identity["methods"]:
         name, settings = method["name"], identity["learners"].get(method["name"])

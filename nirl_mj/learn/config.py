@@ -172,7 +172,9 @@ class RelativeEntropyConfig:
     re_step: float = 0.5  # gradient-ascent step on the dual g(theta)
     re_steps: int = 30  # ascent steps per iteration, warm-started from the last theta
     re_pool: int = 10  # iterations whose rollouts are pooled as importance samples
-    re_confidence: float = 0.95  # Hoeffding confidence of the L1 widths epsilon_i (0: no L1 term)
+    # Hoeffding confidence of the L1 widths epsilon_i (0: no L1 term; the comparisons' RE row runs 0,
+    # tuned on the development domain: experiments/definition.py)
+    re_confidence: float = 0.95
     # how the L1 term -sum eps_i |theta_i| is stepped. "subgradient" (the paper): theta_i flips by
     # +-re_step eps_i around 0 every step; "proximal" (soft-thresholding): such theta_i rest at 0
     re_l1_step: str = "proximal"
@@ -284,6 +286,11 @@ def _counts(config: Any, **minimums: int) -> None:
         value = getattr(config, name)
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ValueError(f"{name} = {value!r}: expected a whole number >= {low}")
+
+
+def holds_retired(flat: Mapping[str, Any]) -> bool:
+    """Whether ``flat`` holds a retired field (:data:`RETIRED`) at a value other than its neutral one."""
+    return any(name in flat and flat[name] != neutral for name, (neutral, _) in RETIRED.items())
 
 
 def without_retired(flat: Mapping[str, Any], where: str) -> dict[str, Any]:
