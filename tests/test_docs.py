@@ -119,3 +119,20 @@ def test_every_relative_link_leads_to_a_file_and_its_heading(page):
             if anchor not in {slug(h) for h in headings}:
                 broken.append(target)
     assert broken == []
+
+
+def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
+    """docs/scripts/paired_runs.py on Table I's stored cells: NIRL minus another equals the stored
+    paired figure; the order of the two flips its sign; an unknown method is refused."""
+    import json
+
+    paired = runpy.run_path(str(ROOT / "docs" / "scripts" / "paired_runs.py"))["paired"]
+    results = json.loads((ROOT / "docs" / "results" / "table1_fair" / "results.json").read_text())
+    stored = results["methods"]["DQN-reward"]["paired"]
+    mine = paired(results, "NIRL", "DQN-reward")
+    assert [mine[k] for k in ("runs", "better", "worse")] == [stored[k] for k in ("runs", "better", "worse")]
+    assert mine["mean"] == pytest.approx(stored["mean"]) and mine["ci"] == pytest.approx(stored["ci"])
+    flipped = paired(results, "DQN-reward", "NIRL")
+    assert flipped["mean"] == pytest.approx(-mine["mean"]) and flipped["better"] == mine["worse"]
+    with pytest.raises(SystemExit, match="no cells of method 'DQN'"):
+        paired(results, "rule", "DQN")

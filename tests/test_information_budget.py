@@ -56,6 +56,9 @@ def test_references_say_what_more_they_read():
     assert method_reads(BUILTIN_METHODS["rule"]) == ["features", "hand_written"]
     assert method_reads(BUILTIN_METHODS["forward"]) == ["hand_written"]
     assert all(is_reference(method_reads(BUILTIN_METHODS[n])) for n in ("DAgger", "PPO-reward", "rule"))
+    # DQN-reward chooses its checkpoint by success on validation arenas: it reads the task's success too
+    assert method_reads(BUILTIN_METHODS["DQN-reward"]) == method_reads(BUILTIN_METHODS["PPO-reward"])
+    assert "task_success_selection" in method_reads(BUILTIN_METHODS["DQN-reward"])
 
 
 def test_an_oracle_setting_is_named_in_reads():

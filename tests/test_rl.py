@@ -343,7 +343,7 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
                          selection="validation_success", changes=changes)  # fmt: skip
     assert record["validation_seeds"] == [domain_seed("validation", 3, k) for k in range(3)]
     assert "task_success_selection" in record["reads"] and record["config"]["lr_schedule"] == "linear"
-    assert [s["steps"] for s in record["scores"]] == [512, 1024]
+    assert [(s["steps"], s["episodes"]) for s in record["scores"]] == [(512, 3), (1024, 3)]
     # each score is the saved checkpoint's success, driven as the tests drive it, on those arenas
     env = make_env(OPEN)
     checkpoints = ((record["selected"]["file"], record["selected"]), ("model.zip", record["scores"][-1]))

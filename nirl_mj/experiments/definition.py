@@ -117,8 +117,8 @@ class MethodSpec:
 
 RL_STEPS, RL_ENVS = 50_000, 8
 """The budget (decisions) and the environments per rollout of GAIL and AIRL (the rows of
-tasks/table1.toml; the variants of issue 16 keep one environment and no selection); the RL reference
-trains twice as long with a third of PPO's learning rate."""
+tasks/table1.toml; the variants of issue 16 keep one environment and no selection); the RL references
+train twice as long, PPO-reward with a third of PPO's learning rate."""
 
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
@@ -161,6 +161,13 @@ BUILTIN_METHODS = {
         envs=RL_ENVS,
         settings={"learning_rate": 1e-4},
     ),  # fmt: skip
+    # the same reference by DQN (experiments.rl.SETTINGS["dqn"], one environment), acting greedily on its
+    # Q-values as NIRL and the rule do; its checkpoint chosen by success on 20 validation arenas,
+    # driven as the tests drive it: its epsilon-greedy training episodes hide the loops its greedy
+    # policy can fall into (tasks/ablations/rl_dqn.toml)
+    "DQN-reward": MethodSpec(
+        "DQN-reward", "rl", algo="dqn", steps=2 * RL_STEPS, selection="validation_success", envs=1
+    ),
     # adversarial imitation: PPO (SB3's settings but 1024-decision rollouts, 50,000 decisions) on a
     # discriminator's reward, its checkpoint chosen by the paper's rule (balanced accuracy on the
     # demonstrations)

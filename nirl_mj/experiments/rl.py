@@ -363,7 +363,9 @@ def train_rl(
             score = float(np.mean(outcomes))
         replaced = None
         if score is not None:
-            entry = {"steps": steps_now, "score": score, "episodes": len(outcomes)}
+            # the episodes the score is over: the validation arenas, the demonstrations, or the window
+            over = {"validation_success": VALIDATION_ARENAS, "demo_balanced": len(trajectories)}
+            entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
             record["scores"] = [*record.get("scores", []), entry]
             if best is None or (score >= best["score"] and steps_now > best["steps"]):
                 # a file per selected checkpoint, named in the record: a kill between the two writes

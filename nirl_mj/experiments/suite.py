@@ -7,7 +7,7 @@ arenas and information budget) with one or more ``[[axis]]`` tables
 - a **training axis** (``demonstrations``, ``demonstrator``) trains every method that reads the
   demonstrations again at each value: the cells of value v are those of the comparison
   ``experiment.at(v)``, kept in ``OUT/points/AXIS-v/`` (its demonstrations and training runs);
-  methods that read no demonstrations (the rule, always forward, PPO on the task's reward) are
+  methods that read no demonstrations (the rule, always forward, PPO or DQN on the task's reward) are
   computed once per run (in ``OUT/points/AXIS-any/``) and stand on every value as a horizontal
   line;
 - **test axes** (``obstacles``, ``speed``, ``moving``, ``family``) test the policies trained once on
