@@ -134,5 +134,5 @@ def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
     assert mine["mean"] == pytest.approx(stored["mean"]) and mine["ci"] == pytest.approx(stored["ci"])
     flipped = paired(results, "DQN-reward", "NIRL")
     assert flipped["mean"] == pytest.approx(-mine["mean"]) and flipped["better"] == mine["worse"]
-    with pytest.raises(SystemExit, match="no cells of method 'DQN'"):
+    with pytest.raises(SystemExit, match="no method 'DQN'"):
         paired(results, "rule", "DQN")

@@ -1,4 +1,4 @@
-"""One method minus another, paired by run, from a ``nirl-mj compare`` results.json's cells: the
+"""One method minus another, paired by run, from a ``nirl-mj compare`` results.json: the
 mean difference of success (points) with its 95 % interval (Student t over the runs' differences)
 and how many runs were better, worse and equal. The tables' paired section takes the experiment's
 first method as the reference; this takes any two.
@@ -16,16 +16,14 @@ from nirl_mj.experiments.stats import paired as paired_runs
 
 
 def paired(results: dict, first: str, second: str) -> dict:
-    """``first`` minus ``second`` over the runs both finished (``stats.paired``, as the tables use)."""
-    by_method: dict[str, dict[int, float]] = {first: {}, second: {}}
-    for cell in results["cells"].values():
-        if cell["method"] in by_method:
-            by_method[cell["method"]][int(cell["run"])] = float(cell["success_rate"])
-    for name, runs in by_method.items():
-        if not runs:
-            raise SystemExit(f"error: no cells of method {name!r} (methods: {', '.join(results['methods'])})")
-    both = sorted(set(by_method[first]) & set(by_method[second]))
-    return paired_runs([by_method[first][r] for r in both], [by_method[second][r] for r in both])
+    """``first`` minus ``second`` over the runs both finished (``stats.paired``, as the tables use),
+    from each method's success per run (``by_run``)."""
+    missing = [name for name in (first, second) if name not in results["methods"]]
+    if missing:
+        raise SystemExit(f"error: no method {missing[0]!r} (methods: {', '.join(results['methods'])})")
+    a, b = (results["methods"][name]["by_run"] for name in (first, second))
+    both = sorted(set(a) & set(b), key=int)
+    return paired_runs([a[r] for r in both], [b[r] for r in both])
 
 
 def main() -> None:
