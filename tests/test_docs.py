@@ -122,7 +122,7 @@ def test_every_relative_link_leads_to_a_file_and_its_heading(page):
 
 
 def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
-    """docs/scripts/paired_runs.py on Table I's stored cells: NIRL minus another equals the stored
+    """docs/scripts/paired_runs.py on Table I's stored results: NIRL minus another equals the stored
     paired figure; the order of the two flips its sign; an unknown method is refused."""
     import json
 

@@ -163,8 +163,8 @@ BUILTIN_METHODS = {
     ),  # fmt: skip
     # the same reference by DQN (experiments.rl.SETTINGS["dqn"], one environment), acting greedily on its
     # Q-values as NIRL and the rule do; its checkpoint chosen by success on 20 validation arenas,
-    # driven as the tests drive it: its epsilon-greedy training episodes hide the loops its greedy
-    # policy can fall into (tasks/ablations/rl_dqn.toml)
+    # driven as the tests drive it: training success kept checkpoints whose greedy policy timed out
+    # (tasks/ablations/rl_dqn.toml)
     "DQN-reward": MethodSpec(
         "DQN-reward", "rl", algo="dqn", steps=2 * RL_STEPS, selection="validation_success", envs=1
     ),
