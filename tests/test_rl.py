@@ -357,3 +357,61 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
     assert model.target_kl == 0.05
     with pytest.raises(ValueError, match="settings.lr_schedule = 'cosine': accepted: constant, linear"):
         rl.tuned("ppo", {"lr_schedule": "cosine"})
+
+
+def test_train_drive_drives_the_training_episodes_only_and_a_resume_keeps_it(tmp_path, monkeypatch):
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.sim import spec
+
+    task = spec.replace(OPEN, robot={"drive": "tyre"})
+    drives, scored = [], []
+    environment, scorer = rl._environment, rl._validation_scorer
+
+    def spy_environment(task, *args, **kwargs):
+        drives.append(task.robot.drive)
+        return environment(task, *args, **kwargs)
+
+    def spy_scorer(model, record, task, seed):
+        scored.append(task.robot.drive)
+        return scorer(model, record, task, seed)
+
+    monkeypatch.setattr(rl, "_environment", spy_environment)
+    monkeypatch.setattr(rl, "_validation_scorer", spy_scorer)
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 2)  # a short test
+    run = tmp_path / "run"
+    record = rl.train_rl(run, task, "dqn", 64, seed=0, checkpoint_every=64, selection="validation_success",
+                         train_drive="planar")  # fmt: skip
+    assert record["config"]["train_drive"] == "planar" and record["task"]["robot"]["drive"] == "tyre"
+    assert drives == ["planar"] and scored == ["tyre"]  # validation drives the tests' wheels
+    record = rl.train_rl(run, task, "dqn", 128, seed=0, checkpoint_every=64, resume=True)  # none given
+    assert record["steps_done"] == 128 and drives == ["planar", "planar"]
+    with pytest.raises(rl.RunError, match="was trained with another config"):
+        rl.train_rl(run, task, "dqn", 192, seed=0, resume=True, train_drive="tyre")
+    # a run given none records none: its config is the one recorded before the key existed
+    assert "train_drive" not in rl.run_config("dqn", "validation_success", 1)
+    with pytest.raises(ValueError, match="train_drive 'flat': accepted: tyre, rollers, planar"):
+        rl.run_config("dqn", "validation_success", 1, train_drive="flat")
+
+
+def test_an_experiment_row_may_train_on_another_drive_and_an_unset_one_keeps_its_identity():
+    data = {"kind": "compare", "methods": ["D"],
+            "method": {"D": {"kind": "rl", "algo": "dqn", "selection": "validation_success",
+                             "train_drive": "planar"}}}  # fmt: skip
+    (method,) = from_dict(data).methods
+    assert method.train_drive == "planar"
+    assert from_dict(data).identity()["methods"][0]["train_drive"] == "planar"
+    assert (
+        "train_drive"
+        not in from_dict({"kind": "compare", "methods": ["DQN-reward"]}).identity()["methods"][0]
+    )
+    data["method"]["D"]["train_drive"] = "hover"
+    with pytest.raises(
+        ExperimentError, match=r"method\.D\.train_drive = 'hover': accepted: tyre, rollers, planar"
+    ):
+        from_dict(data)
+    with pytest.raises(ExperimentError, match='apply to kind = "rl" only'):
+        from_dict(
+            {"kind": "compare", "methods": ["B"], "method": {"B": {"kind": "bc", "train_drive": "planar"}}}
+        )

@@ -310,7 +310,8 @@ def cmd_rl(args: argparse.Namespace) -> int:
             bar.set_postfix(episodes=stats["episodes"], succ=f"{stats['success']:.2f}", refresh=False)
 
         record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress,
-                          demos=args.demos, selection=args.selection, envs=args.envs)  # fmt: skip
+                          demos=args.demos, selection=args.selection, envs=args.envs,
+                          train_drive=args.train_drive)  # fmt: skip
     arenas = len(record["train_seeds"])
     print(f"trained {args.algo} for {record['steps_done']} decisions ({arenas} training arenas) on "
           f"{spec.name}; run in {args.out} (test it with nirl-mj eval --run {args.out})")  # fmt: skip

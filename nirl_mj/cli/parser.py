@@ -13,6 +13,7 @@ from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
 from nirl_mj.learn.config import VARIANTS
 from nirl_mj.sim.rollouts import BACKENDS, DEVICES
+from nirl_mj.sim.spec import DRIVES
 
 DESCRIPTION = "Neural inverse reinforcement learning (NIRL) for a Festo Robotino simulated in MuJoCo."
 
@@ -202,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
     p.add_argument("--envs", type=_positive_int, default=None,
                    help="environments sharing each rollout, in turn (default: 1; a resume: the run's)")
+    p.add_argument("--train-drive", choices=DRIVES, default=None,
+                   help="the drive of the training episodes (default: the task's; a resume: the run's); "
+                        "validation and tests drive the task's, as NIRL's train_drive")
     p.add_argument("--seed", type=_seed, default=0, help="training seed (network, arenas)")
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")

@@ -62,9 +62,10 @@ METHOD_KEYS = (
     "selection",
     "envs",
     "settings",
+    "train_drive",
     "plugin",
 )
-RL_KEYS = ("algo", "steps", "selection", "envs", "settings")  # kind = "rl" only
+RL_KEYS = ("algo", "steps", "selection", "envs", "settings", "train_drive")  # kind = "rl" only
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
 AXIS_KEYS = ("name", "values", "test_task")
@@ -82,7 +83,8 @@ class MethodSpec:
     ``learn.bc.CloneSettings.of``); ``variant``/``method``/``config`` matter for ``kind = "irl"``:
     ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo``,
     ``steps`` (decisions of training), ``selection`` (``experiments.rl.SELECTIONS``), ``envs``
-    (environments sharing each rollout) and ``settings`` (PPO's, ``experiments.rl.TUNABLE``) for
+    (environments sharing each rollout), ``settings`` (PPO's, ``experiments.rl.TUNABLE``) and
+    ``train_drive`` (the training episodes' drive, ``sim.spec.DRIVES``; "" the task's) for
     ``kind = "rl"`` only."""
 
     name: str
@@ -97,6 +99,7 @@ class MethodSpec:
     settings: dict = field(default_factory=dict)  # rl: changes to PPO's settings (experiments.rl.TUNABLE)
     plugin: str = ""  # kind "plugin": the entry point of group nirl_mj.methods (experiments.plugins)
     declared_reads: tuple[str, ...] = ()  # kind "plugin": what the method declares it reads
+    train_drive: str = ""  # rl: the training episodes' drive ("": the task's; tests drive the task's)
 
     @property
     def trains(self) -> bool:
@@ -557,10 +560,13 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             _int(table.get("envs", default.envs), f"{where}.envs", 1),
             _table(table.get("settings", default.settings), f"{where}.settings"),
             _str(table.get("plugin", default.plugin), f"{where}.plugin"),
+            train_drive=_choice(table["train_drive"], specs.DRIVES, f"{where}.train_drive")
+            if "train_drive" in table
+            else default.train_drive,
         )
     if method.kind == "rl":
         try:
-            run_config(method.algo, method.selection, method.envs, method.settings)
+            run_config(method.algo, method.selection, method.envs, method.settings, method.train_drive)
         except ValueError as exc:
             raise ExperimentError(f"{where}: {exc}") from None
     if method.kind == "plugin":
@@ -606,7 +612,8 @@ def _method_identity(method: MethodSpec) -> dict:
     del data["plugin"], data["declared_reads"]
     legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
     for key in RL_KEYS:
-        if method.kind != "rl" or (legacy and key in LEGACY) or (key == "settings" and not method.settings):
+        unset = key in ("settings", "train_drive") and not data[key]
+        if method.kind != "rl" or (legacy and key in LEGACY) or unset:
             del data[key]
     if method.kind in ("bc", "dagger") and method.variant == "default":
         data["clone"] = CLONE_FIT

@@ -65,7 +65,7 @@ def _rl(job, train: bool) -> Trained:
     if train:
         demos = job.demos_path if m.algo in ADVERSARIAL else None
         ensure_rl_trained(job.run_dir, job.task, m.algo, m.steps, job.seed, demos, m.selection, m.envs,
-                          m.settings)  # fmt: skip
+                          m.settings, m.train_drive)  # fmt: skip
     policy, record = load_rl_policy(job.run_dir, shares=True)
     return Trained(policy, frozenset(seen_seeds(record)))
 

@@ -141,10 +141,15 @@ def tuned(algo: str, changes: dict) -> dict:
     return out
 
 
-def run_config(algo: str, selection: str, envs: int, changes: dict | None = None) -> dict:
+def run_config(
+    algo: str, selection: str, envs: int, changes: dict | None = None, train_drive: str = ""
+) -> dict:
     """The settings a run records: the algorithm's with ``changes`` (:func:`tuned`), PPO's rollout
     split over ``envs`` environments (``n_steps`` per environment, the same decisions per update),
-    and the selection."""
+    the selection, and ``train_drive`` where given (:data:`~nirl_mj.sim.spec.DRIVES`: the
+    training episodes' drive; "" the task's, as runs recorded before it existed)."""
+    if train_drive and train_drive not in specs.DRIVES:
+        raise ValueError(f"train_drive {train_drive!r}: accepted: {', '.join(specs.DRIVES)}")
     if selection not in SELECTIONS:
         raise ValueError(f"selection {selection!r}: accepted: {', '.join(SELECTIONS)}")
     if selection == "demo_balanced" and algo not in ADVERSARIAL:
@@ -154,6 +159,8 @@ def run_config(algo: str, selection: str, envs: int, changes: dict | None = None
         raise ValueError(f"envs = {envs}: must be >= 1 and divide the {CHECKPOINT_EVERY} decisions between "
                          "checkpoints")  # fmt: skip
     config = {"algo": algo, **SETTINGS[algo], **tuned(algo, changes or {})}
+    if train_drive:
+        config["train_drive"] = train_drive
     if (selection, envs) == (LEGACY["selection"], LEGACY["envs"]):
         return config
     if "n_steps" in config:
@@ -225,7 +232,7 @@ def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
 def _model_settings(config: dict) -> dict:
     """The keyword arguments of the algorithm's constructor from a run's config: its own keys
     dropped, ``lr_schedule`` turned into the learning rate's schedule."""
-    own = ("algo", "selection", "envs", "discriminator", "lr_schedule")
+    own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive")
     settings = {k: v for k, v in config.items() if k not in own}
     if config.get("lr_schedule") == "linear":
         from stable_baselines3.common.utils import LinearSchedule
@@ -264,12 +271,15 @@ def train_rl(
     selection: str | None = None,
     envs: int | None = None,
     changes: dict | None = None,
+    train_drive: str | None = None,
 ) -> dict:
     """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
     GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate. ``selection``
     (:data:`SELECTIONS`; default :func:`default_selection`) scores every checkpoint and keeps the
     best (``selected-<decisions>.zip``); ``envs`` environments share each rollout; ``changes`` tune
-    PPO (:func:`tuned`). A resume given no ``selection`` (or ``envs`` None) takes the run's own.
+    PPO (:func:`tuned`); ``train_drive`` (``planar``, ``tyre`` or ``rollers``; "" the task's) is the
+    drive of the training episodes, as NIRL's ``train_drive``: validation and tests drive ``task``.
+    A resume given no ``selection`` (or ``envs``, ``train_drive`` None) takes the run's own.
 
     ``on_steps(new decisions, {"episodes", "success"})`` reports progress (success over the last
     100 training episodes). One writer at a time (``nirl_mj.data.lock``)."""
@@ -282,12 +292,13 @@ def train_rl(
     if steps < 1:
         raise ValueError(f"steps = {steps}: must be >= 1")
     run = RunDir(run_dir)
-    if resume and run.is_run and (selection is None or envs is None):
+    if resume and run.is_run and (selection is None or envs is None or train_drive is None):
         saved_config = run.read_record().get("config", {})
         selection = selection or saved_config.get("selection", LEGACY["selection"])
         envs = envs or saved_config.get("envs", LEGACY["envs"])
+        train_drive = saved_config.get("train_drive", "") if train_drive is None else train_drive
     selection, envs = selection or default_selection(algo), envs or LEGACY["envs"]
-    config = run_config(algo, selection, envs, changes)
+    config = run_config(algo, selection, envs, changes, train_drive or "")
     if checkpoint_every % envs:
         raise ValueError(f"checkpoint_every = {checkpoint_every}: must be a multiple of envs = {envs}")
     adversarial = algo in ADVERSARIAL
@@ -325,7 +336,8 @@ def train_rl(
         run.write_record(record)
 
     legacy = "selection" not in config
-    venv, arenas = _environment(task, seed, len(record["train_seeds"]), envs, legacy)
+    train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
+    venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy)
     callbacks = []
     if adversarial:
         expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
@@ -435,6 +447,7 @@ def ensure_rl_trained(
     selection: str | None = None,
     envs: int = 1,
     changes: dict | None = None,
+    train_drive: str = "",
 ) -> dict:
     """Trains the run, resumes it from its last checkpoint, or returns a finished one's record (an
     experiment's cell: ``nirl_mj.experiments.protocol.policy_of``)."""
@@ -444,7 +457,7 @@ def ensure_rl_trained(
         if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
             return record
     return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos, selection=selection,
-                    envs=envs, changes=changes)  # fmt: skip
+                    envs=envs, changes=changes, train_drive=train_drive)  # fmt: skip
 
 
 def is_rl_run(record: dict) -> bool:

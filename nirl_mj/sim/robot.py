@@ -33,11 +33,12 @@ from dm_control import composer, mjcf
 
 from nirl_mj.sim import drive
 from nirl_mj.sim.sensing import cone_fovy
+from nirl_mj.sim.spec import DRIVES
 
 __all__ = ["FIDELITIES", "MODEL_PATH", "Robotino"]
 
 MODEL_PATH: Path = Path(__file__).resolve().parents[2] / "models" / "robotino" / "robotino.xml"
-FIDELITIES: tuple[str, ...] = ("tyre", "rollers", "planar")
+FIDELITIES: tuple[str, ...] = DRIVES
 
 # Pair friction [tangent 1, tangent 2, torsional, rolling, rolling]. The
 # capsule-plane collider puts tangent 1 along the capsule axis (the axle):

@@ -57,6 +57,9 @@ def _choices(*values: str):
 # stay byte-identical.
 _OMIT_DEFAULT = {"omit_default": True}
 
+DRIVES: tuple[str, ...] = ("tyre", "rollers", "planar")
+"""The robot's drive fidelities (``nirl_mj.sim.robot``): tyre wheels, roller wheels, a planar base."""
+
 
 @dataclass(frozen=True)
 class ObstacleSpec:
@@ -107,7 +110,7 @@ class ArenaSpec:
 class RobotSpec:
     """Which physics model drives the robot and how its range sensors are sampled."""
 
-    drive: str = field(default="tyre", metadata=_choices("tyre", "rollers", "planar"))
+    drive: str = field(default="tyre", metadata=_choices(*DRIVES))
     rays_per_sensor: int = field(default=5, metadata=_check(1, 64))
 
 
