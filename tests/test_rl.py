@@ -415,3 +415,26 @@ def test_an_experiment_row_may_train_on_another_drive_and_an_unset_one_keeps_its
         from_dict(
             {"kind": "compare", "methods": ["B"], "method": {"B": {"kind": "bc", "train_drive": "planar"}}}
         )
+
+
+def test_the_train_drive_of_a_row_and_of_the_command_line_reaches_training(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from nirl_mj.experiments import kinds, rl
+
+    given = []
+    monkeypatch.setattr(rl, "ensure_rl_trained", lambda *args: given.append(args[-1]))
+    monkeypatch.setattr(rl, "load_rl_policy", lambda *args, **kwargs: (None, {}))
+    data = {"kind": "compare", "methods": ["D"],
+            "method": {"D": {"kind": "rl", "algo": "dqn", "selection": "validation_success",
+                             "train_drive": "planar"}}}  # fmt: skip
+    (method,) = from_dict(data).methods
+    kinds.KINDS["rl"](SimpleNamespace(method=method, run_dir="r", task=None, seed=0, demos_path=""), True)
+    assert given == ["planar"]
+
+    monkeypatch.setattr(rl, "train_rl", lambda *args, **kwargs: given.append(kwargs["train_drive"]) or
+                        {"train_seeds": [], "steps_done": 1})  # fmt: skip
+    base = ["rl", "--algo", "dqn", "--steps", "1", "--quiet", *SMALL]
+    assert main([*base, "--out", str(tmp_path / "a"), "--train-drive", "rollers"]) == 0
+    assert main([*base, "--out", str(tmp_path / "b")]) == 0
+    assert given == ["planar", "rollers", None]  # None: the task's drive, or a resume's own

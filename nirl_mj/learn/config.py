@@ -88,7 +88,7 @@ class LoopConfig:
     bootstrap: str = "q"
     hidden_units: int = 32
     n_step: int = 3
-    train_drive: str = "planar"  # the training rollouts' drive fidelity (same kinematics, 5x faster)
+    train_drive: str = "planar"  # the training rollouts' drive (same kinematics, ~1.9x the decisions/s)
     # "map": the demonstrations' ambiguous states relabelled with eq. 10's MAP action before anything
     # reads them (paper section IV-A, learn/pretreat.py, uniform prior); "none": as recorded
     pretreatment: str = "none"
