@@ -157,6 +157,12 @@ DEPARTURES: tuple[Departure, ...] = (
         "thing a policy can do and it circles; a fixed value for an arrival would read the task's outcome",
         (
             Ablation(
+                "information_budget_today",
+                "NIRL-outcome",
+                "NIRL",
+                note="the task's outcome instead: an arrival worth 1, other ends 0; development arenas",
+            ),
+            Ablation(
                 "information_budget",
                 "NIRL-outcome",
                 "NIRL",
@@ -227,6 +233,12 @@ DEPARTURES: tuple[Departure, ...] = (
         "per-action recall does not",
         (
             Ablation("table1_fair", "NIRL-last", "NIRL", note="the last iterate, no selection"),
+            Ablation(
+                "information_budget_today",
+                "NIRL-validation",
+                "NIRL",
+                note="success on 40 validation arenas instead, which reads the task; development arenas",
+            ),
             Ablation(
                 "information_budget",
                 "NIRL-validation",
