@@ -104,7 +104,7 @@ def test_rl_methods_are_validated_in_experiment_files():
     with pytest.raises(ExperimentError, match="accepted: ppo, dqn, gail, airl"):
         from_dict({**data, "method": {"DQN": {"kind": "rl", "algo": "a2c"}}})
     with pytest.raises(
-        ExperimentError, match='algo, steps, selection, envs, settings apply to kind = "rl" only'
+        ExperimentError, match='algo, steps, selection, envs, settings, train_drive apply to kind = "rl" only'
     ):
         from_dict({"kind": "compare", "methods": ["X"], "method": {"X": {"kind": "bc", "steps": 3}}})
     with pytest.raises(ExperimentError, match="compare and suite experiments, not in a sweep"):
