@@ -136,3 +136,24 @@ def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
     assert flipped["mean"] == pytest.approx(-mine["mean"]) and flipped["better"] == mine["worse"]
     with pytest.raises(SystemExit, match="no method 'DQN'"):
         paired(results, "rule", "DQN")
+
+
+def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
+    """docs/scripts/suite_versus.py: first minus second per (axis, value) over the runs both hold, on a
+    hand-computed case; the stored suites and their decaying-step predecessors share BC's rows
+    exactly (the same seeds, demonstrations and test arenas), which is what makes NIRL's pair."""
+    versus = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_versus.py"))["versus"]
+    head = "suite,axis,value,method,run,tests,success,collision,timeout,spl,sct\n"
+    first, second = tmp_path / "a.csv", tmp_path / "b.csv"
+    first.write_text(head + "".join(f"s,n,1,X,{r},10,{v},0,0,0,0\n" for r, v in enumerate([0.9, 0.8, 1.0])))
+    second.write_text(head + "s,n,1,X,0,10,0.7,0,0,0,0\ns,n,1,X,1,10,0.8,0,0,0,0\ns,n,2,X,0,10,0.1,0,0,0,0\n")
+    (point, pair), *rest = versus(first, second, "X").items()
+    assert point == ("n", "1") and rest == []  # value 2 and run 2 are in one file only
+    assert pair["runs"] == 2 and pair["mean"] == pytest.approx(0.1)
+    assert [pair["better"], pair["worse"], pair["equal"]] == [1, 0, 1]
+    with pytest.raises(SystemExit, match="no point of 'Y'"):
+        versus(first, second, "Y")
+    stored, before = (ROOT / "docs" / "results" / name for name in ("suites", "suites_decaying_step"))
+    for suite in ("demos", "quality"):
+        bc = versus(stored / f"{suite}.csv", before / f"{suite}.csv", "BC")
+        assert bc and all(p["mean"] == 0.0 and p["equal"] == p["runs"] for p in bc.values())

@@ -1,0 +1,56 @@
+"""One method's success in two stored suite CSVs, paired by (axis, value, run): for every point both
+hold, the first CSV's success minus the second's in points, with its 95 % interval (Student t over
+the runs' differences, ``stats.paired``, as the suite tables use). For two computations of the same
+suite that differ in one setting (for example docs/results/suites against
+docs/results/suites_decaying_step: the same seeds, demonstrations and test arenas).
+
+    python docs/scripts/suite_versus.py FIRST.csv SECOND.csv METHOD     # FIRST minus SECOND
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+from nirl_mj.experiments.stats import paired
+
+
+def successes(path: Path, method: str) -> dict[tuple[str, str], dict[str, float]]:
+    """{(axis, value): {run: success}} of ``method``'s rows in a suite CSV."""
+    points: dict[tuple[str, str], dict[str, float]] = {}
+    with path.open(newline="", encoding="utf-8") as handle:
+        for row in csv.DictReader(handle):
+            if row["method"] == method:
+                points.setdefault((row["axis"], row["value"]), {})[row["run"]] = float(row["success"])
+    return points
+
+
+def versus(first: Path, second: Path, method: str) -> dict[tuple[str, str], dict]:
+    """{(axis, value): stats.paired of first minus second} over the points and runs both CSVs hold."""
+    a, b = (successes(path, method) for path in (first, second))
+    if not set(a) & set(b):
+        raise SystemExit(f"error: no point of {method!r} in both {first} and {second}")
+    pairs = {}
+    for point in (p for p in a if p in b):
+        runs = sorted(set(a[point]) & set(b[point]), key=int)
+        pairs[point] = paired([a[point][r] for r in runs], [b[point][r] for r in runs])
+    return pairs
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("first", type=Path)
+    parser.add_argument("second", type=Path)
+    parser.add_argument("method")
+    args = parser.parse_args()
+    for (axis, value), p in versus(args.first, args.second, args.method).items():
+        interval = "" if p["ci"][0] is None else " [{:+.1f}, {:+.1f}]".format(*(100 * v for v in p["ci"]))
+        print(
+            f"{axis} = {value}: {100 * p['mean']:+.1f}{interval} over {p['runs']} runs "
+            f"({p['better']} better / {p['worse']} worse / {p['equal']} equal)"
+        )
+
+
+if __name__ == "__main__":
+    main()
