@@ -6,11 +6,12 @@ cells in the full suite: every value and run of a training axis, or every run of
 methods that read no demonstrations once per run), and the machines of ``--cores`` cores that would
 finish it within an hour, every cell independent, at ``--efficiency`` scaling per worker
 (bench/bench_executors.py). A method with no finished cell in a suite is estimated from its mean
-cell time in ``--table`` (a finished Table I directory: a training on 30 demonstrations and 100 tests)
-times the suite's median ratio of its measured methods' cells to their Table I cells (the transfer
-suite's cells test 16 points of 50 arenas), and marked so. Writes its section of docs/PERFORMANCE.md.
+cell time in ``--table`` (a Table I directory: a training on 30 demonstrations and 100 tests; of
+several, the first that timed the method) times the suite's median ratio of its measured methods'
+cells to their Table I cells (the transfer suite's cells test 16 points of 50 arenas), and marked so.
+Writes its section of docs/PERFORMANCE.md.
 
-    python bench/bench_suites.py runs/demos runs/quality runs/transfer [--table runs/table1_fair]
+    python bench/bench_suites.py runs/demos runs/quality runs/transfer [--table runs/table1_fair ...]
 """
 
 from __future__ import annotations
@@ -50,9 +51,12 @@ def cells_per_method(experiment: Experiment) -> dict[str, int]:
             for m in experiment.methods}  # fmt: skip
 
 
-def report(dirs: list[Path], efficiency: float, cores: int, table: Path | None = None) -> str:
+def report(dirs: list[Path], efficiency: float, cores: int, tables: list[Path] | None = None) -> str:
     lines, total = [], 0.0
-    table_times = cell_seconds(table) if table else {}
+    table_times: dict[str, list[float]] = {}
+    for table in tables or []:  # each method's times from the first directory that timed it
+        for method, seconds in cell_seconds(table).items():
+            table_times.setdefault(method, seconds)
     for out in dirs:
         saved = json.loads((out / "experiment.json").read_text())
         name = out.name
@@ -91,7 +95,7 @@ def report(dirs: list[Path], efficiency: float, cores: int, table: Path | None =
                                   "core-hours, whole suite"], rows), ""]  # fmt: skip
     machines = math.ceil(total / (cores * efficiency))
     lines += [f"All {len(dirs)} suites: **{total:.1f} core-hours** (target: 24; methods neither measured "
-              "nor in the Table I directory are not in it); machines of "
+              "nor in a Table I directory are not in it); machines of "
               f"{cores} cores to finish them within an hour at {efficiency:.0%} scaling per worker: "
               f"**{machines}**. Cell times as they ran: the cells shared the 2 cores with other work, so "
               "they err long."]  # fmt: skip
@@ -103,7 +107,12 @@ def main() -> None:
     parser.add_argument("dirs", nargs="+", type=Path)
     parser.add_argument("--efficiency", type=float, default=0.964)
     parser.add_argument("--cores", type=int, default=2)
-    parser.add_argument("--table", type=Path, default=None, help="a finished Table I output directory")
+    parser.add_argument(
+        "--table",
+        type=Path,
+        action="append",
+        help="a Table I output directory (repeat it: each method's cell times from the first that has them)",
+    )
     args = parser.parse_args()
     body = report(args.dirs, args.efficiency, args.cores, args.table)
     print(body)

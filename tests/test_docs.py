@@ -154,6 +154,6 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
     with pytest.raises(SystemExit, match="no point of 'Y'"):
         versus(first, second, "Y")
     stored, before = (ROOT / "docs" / "results" / name for name in ("suites", "suites_decaying_step"))
-    for suite in ("demos", "quality"):
+    for suite in ("demos", "quality", "transfer"):
         bc = versus(stored / f"{suite}.csv", before / f"{suite}.csv", "BC")
         assert bc and all(p["mean"] == 0.0 and p["equal"] == p["runs"] for p in bc.values())
