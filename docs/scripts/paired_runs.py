@@ -26,6 +26,16 @@ def paired(results: dict, first: str, second: str) -> dict:
     return paired_runs([a[r] for r in both], [b[r] for r in both])
 
 
+def describe(p: dict) -> str:
+    """A ``stats.paired`` result in points: "+1.2 [-0.3, +2.7] over 5 runs (3 better / 1 worse / 1 equal)"
+    (no interval with fewer than 2 runs)."""
+    interval = "" if p["ci"][0] is None else " [{:+.1f}, {:+.1f}]".format(*(100 * v for v in p["ci"]))
+    return (
+        f"{100 * p['mean']:+.1f}{interval} over {p['runs']} runs "
+        f"({p['better']} better / {p['worse']} worse / {p['equal']} equal)"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path)
@@ -33,11 +43,7 @@ def main() -> None:
     parser.add_argument("second")
     args = parser.parse_args()
     p = paired(json.loads(args.results.read_text(encoding="utf-8")), args.first, args.second)
-    low, high = (f"{100 * v:+.1f}" for v in p["ci"])
-    print(
-        f"{args.first} minus {args.second}: {100 * p['mean']:+.1f} [{low}, {high}] over {p['runs']} runs "
-        f"({p['better']} better / {p['worse']} worse / {p['equal']} equal)"
-    )
+    print(f"{args.first} minus {args.second}: {describe(p)}")
 
 
 if __name__ == "__main__":

@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import runpy
 from pathlib import Path
 
 from nirl_mj.experiments.stats import paired
+
+describe = runpy.run_path(str(Path(__file__).with_name("paired_runs.py")))["describe"]  # its wording
 
 
 def successes(path: Path, method: str) -> dict[tuple[str, str], dict[str, float]]:
@@ -45,11 +48,7 @@ def main() -> None:
     parser.add_argument("method")
     args = parser.parse_args()
     for (axis, value), p in versus(args.first, args.second, args.method).items():
-        interval = "" if p["ci"][0] is None else " [{:+.1f}, {:+.1f}]".format(*(100 * v for v in p["ci"]))
-        print(
-            f"{axis} = {value}: {100 * p['mean']:+.1f}{interval} over {p['runs']} runs "
-            f"({p['better']} better / {p['worse']} worse / {p['equal']} equal)"
-        )
+        print(f"{axis} = {value}: {describe(p)}")
 
 
 if __name__ == "__main__":
