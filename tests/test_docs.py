@@ -153,6 +153,11 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
     assert [pair["better"], pair["worse"], pair["equal"]] == [1, 0, 1]
     with pytest.raises(SystemExit, match="no point of 'Y'"):
         versus(first, second, "Y")
+    with pytest.raises(SystemExit, match="cannot read .*missing.csv"):
+        versus(first, tmp_path / "missing.csv", "X")
+    (tmp_path / "other.csv").write_text("method,run\nX,0\n")
+    with pytest.raises(SystemExit, match="is not a suite CSV"):
+        versus(first, tmp_path / "other.csv", "X")
     stored, before = (ROOT / "docs" / "results" / name for name in ("suites", "suites_decaying_step"))
     for suite in ("demos", "quality", "transfer"):
         bc = versus(stored / f"{suite}.csv", before / f"{suite}.csv", "BC")

@@ -22,22 +22,31 @@ describe = runpy.run_path(str(Path(__file__).with_name("paired_runs.py")))["desc
 def successes(path: Path, method: str) -> dict[tuple[str, str], dict[str, float]]:
     """{(axis, value): {run: success}} of ``method``'s rows in a suite CSV."""
     points: dict[tuple[str, str], dict[str, float]] = {}
-    with path.open(newline="", encoding="utf-8") as handle:
-        for row in csv.DictReader(handle):
-            if row["method"] == method:
-                points.setdefault((row["axis"], row["value"]), {})[row["run"]] = float(row["success"])
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            for row in csv.DictReader(handle):
+                if row["method"] == method:
+                    points.setdefault((row["axis"], row["value"]), {})[row["run"]] = float(row["success"])
+    except OSError as error:
+        raise SystemExit(f"error: cannot read {path}: {error.strerror}") from None
+    except (KeyError, ValueError) as error:
+        raise SystemExit(f"error: {path} is not a suite CSV (nirl-mj suite's suite.csv): {error}") from None
     return points
 
 
 def versus(first: Path, second: Path, method: str) -> dict[tuple[str, str], dict]:
-    """{(axis, value): stats.paired of first minus second} over the points and runs both CSVs hold."""
+    """{(axis, value): stats.paired of first minus second} over the points and runs both CSVs hold.
+
+    A file that cannot be read, or is not a suite CSV, or holds no point of ``method`` that the other
+    holds, exits with one ``error:`` line."""
     a, b = (successes(path, method) for path in (first, second))
     if not set(a) & set(b):
         raise SystemExit(f"error: no point of {method!r} in both {first} and {second}")
     pairs = {}
     for point in (p for p in a if p in b):
         runs = sorted(set(a[point]) & set(b[point]), key=int)
-        pairs[point] = paired([a[point][r] for r in runs], [b[point][r] for r in runs])
+        if runs:  # a point the two computed on other runs has nothing to pair
+            pairs[point] = paired([a[point][r] for r in runs], [b[point][r] for r in runs])
     return pairs
 
 
