@@ -10,27 +10,25 @@ docs/results/suites_decaying_step: the same seeds, demonstrations and test arena
 from __future__ import annotations
 
 import argparse
-import csv
 import runpy
 from pathlib import Path
 
+from nirl_mj.experiments import tidy
 from nirl_mj.experiments.stats import paired
 
 describe = runpy.run_path(str(Path(__file__).with_name("paired_runs.py")))["describe"]  # its wording
 
 
-def successes(path: Path, method: str) -> dict[tuple[str, str], dict[str, float]]:
-    """{(axis, value): {run: success}} of ``method``'s rows in a suite CSV."""
-    points: dict[tuple[str, str], dict[str, float]] = {}
+def successes(path: Path, method: str) -> dict[tuple[str, str], dict[int, float]]:
+    """{(axis, value): {run: success}} of ``method``'s rows in a suite CSV (read by ``tidy.read``)."""
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            for row in csv.DictReader(handle):
-                if row["method"] == method:
-                    points.setdefault((row["axis"], row["value"]), {})[row["run"]] = float(row["success"])
-    except OSError as error:
-        raise SystemExit(f"error: cannot read {path}: {error.strerror}") from None
-    except (KeyError, ValueError) as error:
-        raise SystemExit(f"error: {path} is not a suite CSV (nirl-mj suite's suite.csv): {error}") from None
+        rows = tidy.read(path)
+    except tidy.TidyError as error:
+        raise SystemExit(f"error: cannot read {path}, or it is not a suite CSV: {error}") from None
+    points: dict[tuple[str, str], dict[int, float]] = {}
+    for row in rows:
+        if row["method"] == method:
+            points.setdefault((row["axis"], row["value"]), {})[row["run"]] = row["success"]
     return points
 
 
@@ -44,7 +42,7 @@ def versus(first: Path, second: Path, method: str) -> dict[tuple[str, str], dict
         raise SystemExit(f"error: no point of {method!r} in both {first} and {second}")
     pairs = {}
     for point in (p for p in a if p in b):
-        runs = sorted(set(a[point]) & set(b[point]), key=int)
+        runs = sorted(set(a[point]) & set(b[point]))
         if runs:  # a point the two computed on other runs has nothing to pair
             pairs[point] = paired([a[point][r] for r in runs], [b[point][r] for r in runs])
     return pairs
