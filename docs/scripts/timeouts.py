@@ -1,0 +1,77 @@
+"""How a run's timeouts end: the cycle of actions each timed-out test episode repeats at its end.
+
+A greedy policy on phi(s) has no memory, so a timeout is often a limit cycle (forward, backward,
+forward, ... in front of an obstacle; a turn repeated on an orbit around the target). This evaluates a run's
+policy on its held-out test arenas (as ``nirl-mj eval``, nothing written) and prints, for each
+timeout, the cycle it ends in (``nirl_mj.data.cycles.final_cycle``), the metres moved over one
+the cycle, and the states of the cycle (D levels, V, I).
+
+    python docs/scripts/timeouts.py RUN [--tests 10] [--seed 0] [--which selected]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+
+from nirl_mj.data.cycles import final_cycle
+from nirl_mj.data.features import ACTION_NAMES
+from nirl_mj.data.rundir import RunError
+from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.subjects import run_subject
+from nirl_mj.sim.task import make_env
+
+
+def state_text(phi) -> str:
+    """D levels of S1-S4, S7-S9, then V and I, of one phi(s)."""
+    d = "".join(str(int(v)) for v in phi[:7])
+    return f"D {d} V {int(phi[7])} I {int(phi[8])}"
+
+
+def lowest_rotation(actions: tuple[int, ...]) -> tuple[int, ...]:
+    """The smallest of a cycle's rotations, so one cycle met at different phases is named once."""
+    return min(actions[i:] + actions[:i] for i in range(len(actions)))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", help="run directory (nirl-mj train, or a suite's or compare's run)")
+    parser.add_argument("--tests", type=int, default=10, help="test arenas (default 10)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the test arenas (as for eval)")
+    parser.add_argument("--which", default="selected", help="selected, last or an iteration number")
+    args = parser.parse_args()
+    if args.tests < 1:
+        sys.exit(f"error: --tests {args.tests}: expected at least 1")
+    try:
+        subject = run_subject(args.run, args.which, None)
+    except (RunError, FileNotFoundError, ValueError) as e:
+        sys.exit(f"error: {e}")
+    env = make_env(subject.task)
+    metrics, trajectories = evaluate(
+        env, subject.policy, subject.test_seeds(args.seed, args.tests), subject.name
+    )
+    print(
+        f"{args.run} ({args.which}): success {metrics['success_rate']:.0%}, collision "
+        f"{metrics['collision_rate']:.0%}, timeout {metrics['timeout_rate']:.0%} over {args.tests} arenas"
+    )
+    kinds: Counter[str] = Counter()
+    for i, t in enumerate(trajectories):
+        if t.outcome != "timeout":
+            continue
+        cycle = final_cycle(t)
+        if cycle is None:
+            kinds["no cycle"] += 1
+            print(f"arena {i}: timeout, no cycle (no period <= 12 repeats over the last 24 decisions)")
+            continue
+        names = ", ".join(ACTION_NAMES[a] for a in cycle.actions)
+        kinds[", ".join(ACTION_NAMES[a] for a in lowest_rotation(cycle.actions))] += 1
+        states = "; ".join(state_text(phi) for phi in cycle.states)
+        print(f"arena {i}: timeout in a cycle of {cycle.period} ({names}) over its last {cycle.length} "
+              f"decisions, within {cycle.radius:.1f} m; states: {states}")  # fmt: skip
+    for names, n in kinds.most_common():
+        print(f"{n} timeout(s): {names}")
+
+
+if __name__ == "__main__":
+    main()
