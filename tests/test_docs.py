@@ -162,3 +162,30 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
     for suite in ("demos", "quality", "transfer"):
         bc = versus(stored / f"{suite}.csv", before / f"{suite}.csv", "BC")
         assert bc and all(p["mean"] == 0.0 and p["equal"] == p["runs"] for p in bc.values())
+
+
+def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(tmp_path):
+    """docs/scripts/suite_reading.py on a hand-built quality and demos suite: NIRL-MAP minus NIRL (the
+    paper's pretreatment on minus off) and, on the demonstrations axis, each other learner minus BC,
+    paired by run; a pair with no common point is left out."""
+    render = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))["render"]
+    head = "suite,axis,value,method,run,tests,success,collision,timeout,spl,sct\n"
+    quality = {"NIRL": [0.5, 0.6], "NIRL-MAP": [0.7, 0.7], "BC": [0.2, 0.2], "expert": [0.9, 0.9]}
+    (tmp_path / "quality.csv").write_text(head + "".join(
+        f"quality,demonstrator,{point},{m},{r},10,{v},0,0,0,0\n"
+        for point in ("sensor", "sensor-random30") for m, vs in quality.items() for r, v in enumerate(vs)
+    ))  # fmt: skip
+    demos = {"NIRL": [0.9, 0.8], "BC": [0.4, 0.6], "AL": [0.5, 0.7], "rule": [1.0, 1.0]}
+    (tmp_path / "demos.csv").write_text(head + "".join(
+        f"demos,demonstrations,{point},{m},{r},10,{v},0,0,0,0\n"
+        for point in (3, 30) for m, vs in demos.items() for r, v in enumerate(vs)
+    ))  # fmt: skip
+    text = render(tmp_path)
+    # NIRL-MAP minus NIRL: differences 0.2 and 0.1, mean 15 points; t(1) interval 0.15 +- 12.706 * 0.05.
+    assert "NIRL-MAP minus NIRL (quality), paired by run" in text
+    assert "- demonstrator = sensor-random30: +15.0 [-48.5, +78.5] (n = 2)" in text
+    # AL minus BC: 0.1 in both runs, no spread.
+    al = "AL minus BC (demos), paired by run, points [95 % interval]:\n\n"
+    assert al + "- demonstrations = 3: +10.0 [+10.0, +10.0] (n = 2)" in text
+    assert "rule minus BC" not in text and "NIRL-MAP minus NIRL (demos" not in text
+    assert "(transfer: not computed yet)" in text

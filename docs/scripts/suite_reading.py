@@ -7,7 +7,9 @@ method):
 - from how few demonstrations each learner reaches 90 % of its own 30-demonstration success;
 - how much of its clean-demonstration success each keeps with each flawed demonstrator;
 - how much of the sensor expert's success each keeps where it was never trained;
-- where the first learner (NIRL) and behaviour cloning differ, paired.
+- where the first learner (NIRL) and behaviour cloning differ, paired (on the demonstrations axis,
+  every other learner against behaviour cloning too; on the demonstrator axis, NIRL-MAP against
+  NIRL: the paper's MAP pretreatment on minus off).
 
     python docs/scripts/suite_reading.py [DIR]
         DIR: where the CSVs are (default docs/results/suites). docs/RESULTS.md holds the reading in a
@@ -23,7 +25,7 @@ from nirl_mj.experiments.stats import paired
 from nirl_mj.experiments.tidy import read
 
 REFERENCES = ("expert", "rule", "forward", "PPO-reward", "DAgger")
-LEARNER, CLONE = "NIRL", "BC"
+LEARNER, CLONE, MAP = "NIRL", "BC", "NIRL-MAP"
 
 
 def success(rows: list[dict], axis: str, value: str, method: str) -> dict[int, float]:
@@ -107,14 +109,18 @@ def transfer_reading(rows: list[dict]) -> list[str]:
     return out
 
 
-def versus_clone(name: str, rows: list[dict]) -> list[str]:
-    out = [f"{LEARNER} minus {CLONE} ({name}), paired by run, points [95 % interval]:", ""]
+def versus(name: str, rows: list[dict], first: str = LEARNER, second: str = CLONE) -> list[str]:
+    """``first`` minus ``second`` at every point both computed, paired by run; nothing when they share
+    no point."""
+    lines = []
     for axis in dict.fromkeys(r["axis"] for r in rows):
         for v in values(rows, axis):
-            a, b = success(rows, axis, v, LEARNER), success(rows, axis, v, CLONE)
+            a, b = success(rows, axis, v, first), success(rows, axis, v, second)
             if a and b:
-                out.append(f"- {axis} = {v}: {interval(a, b)}")
-    return [*out, ""]
+                lines.append(f"- {axis} = {v}: {interval(a, b)}")
+    if not lines:
+        return []
+    return [f"{first} minus {second} ({name}), paired by run, points [95 % interval]:", "", *lines, ""]
 
 
 def render(folder: Path) -> str:
@@ -126,7 +132,12 @@ def render(folder: Path) -> str:
             parts.append(f"({name}: not computed yet)\n")
             continue
         rows = read(path)
-        parts.append("\n".join([*reading(rows), "", *versus_clone(name, rows)]))
+        pairs = [versus(name, rows)]
+        if name == "quality":  # the paper's MAP pretreatment (section IV-A), on minus off
+            pairs.append(versus(name, rows, MAP, LEARNER))
+        if name == "demos":  # every other learner against the clone, where the suites separate methods
+            pairs += [versus(name, rows, m) for m in learners(rows) if m not in (LEARNER, CLONE)]
+        parts.append("\n".join([*reading(rows), "", *(line for p in pairs for line in p)]))
     return "\n".join(parts)
 
 
