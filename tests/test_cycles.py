@@ -48,6 +48,22 @@ def test_radius_is_the_largest_distance_from_the_tails_mean_position():
     assert cycle.radius == pytest.approx(16 / 31)
 
 
+def test_a_period_needs_two_repeats_so_a_long_period_cannot_hide_a_short_cycle():
+    # Varied actions, then (F, B) five times: period 12 explains no repeat at all and must not
+    # count as a 12-decision tail that outranks the 10 decisions of (F, B).
+    actions = [0, 1, 2, 3, 4, 5, 4, 3, 2, 1, 0, 2, 4, 1, 5, 3] + [F, B] * 5
+    cycle = final_cycle(episode(actions), min_length=4)
+    assert (cycle.actions, cycle.length) == ((F, B), 10)
+    assert final_cycle(episode(actions[:-1] + [L30]), min_length=4) is None  # the last repeat broken
+
+
+def test_continuous_actions_have_no_cycle():
+    t = episode([F] * 30)
+    shares = np.zeros((30, 2), np.float32)
+    continuous = Trajectory(**{**{f: getattr(t, f) for f in t.__dataclass_fields__}, "actions": shares})
+    assert final_cycle(continuous) is None
+
+
 def test_no_cycle_when_the_tail_is_short_or_the_actions_vary():
     assert final_cycle(episode([L30] * 10)) is None  # 10 < min_length 24
     assert final_cycle(episode([L30] * 30)).actions == (L30,)

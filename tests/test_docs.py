@@ -179,7 +179,7 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     (tmp_path / "demos.csv").write_text(head + "".join(
         f"demos,demonstrations,{point},{m},{r},10,{v},0,0,0,0\n"
         for point in (3, 30) for m, vs in demos.items() for r, v in enumerate(vs)
-    ))  # fmt: skip
+    ) + "demos,demonstrations,100,SCIRL,0,10,0.5,0,0,0,0\n")  # fmt: skip
     text = render(tmp_path)
     # NIRL-MAP minus NIRL: differences 0.2 and 0.1, mean 15 points; t(1) interval 0.15 +- 12.706 * 0.05.
     assert "NIRL-MAP minus NIRL (quality), paired by run" in text
@@ -187,5 +187,5 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     # AL minus BC: 0.1 in both runs, no spread.
     al = "AL minus BC (demos), paired by run, points [95 % interval]:\n\n"
     assert al + "- demonstrations = 3: +10.0 [+10.0, +10.0] (n = 2)" in text
-    assert "rule minus BC" not in text and "NIRL-MAP minus NIRL (demos" not in text
+    assert "rule minus BC" not in text and "SCIRL minus BC" not in text  # a reference; no common point
     assert "(transfer: not computed yet)" in text

@@ -24,7 +24,7 @@ from pathlib import Path
 from nirl_mj.experiments.stats import paired
 from nirl_mj.experiments.tidy import read
 
-REFERENCES = ("expert", "rule", "forward", "PPO-reward", "DAgger")
+REFERENCES = ("expert", "rule", "forward", "PPO-reward", "DQN-reward", "DAgger")
 LEARNER, CLONE, MAP = "NIRL", "BC", "NIRL-MAP"
 
 
