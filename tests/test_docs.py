@@ -167,7 +167,7 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
 def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(tmp_path):
     """docs/scripts/suite_reading.py on a hand-built quality and demos suite: NIRL-MAP minus NIRL (the
     paper's pretreatment on minus off) and, on the demonstrations axis, each other learner minus BC,
-    paired by run; a pair with no common point is left out."""
+    and NIRL minus each, paired by run; a pair with no common point is left out."""
     render = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))["render"]
     head = "suite,axis,value,method,run,tests,success,collision,timeout,spl,sct\n"
     quality = {"NIRL": [0.5, 0.6], "NIRL-MAP": [0.7, 0.7], "BC": [0.2, 0.2], "expert": [0.9, 0.9]}
@@ -187,5 +187,6 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     # AL minus BC: 0.1 in both runs, no spread.
     al = "AL minus BC (demos), paired by run, points [95 % interval]:\n\n"
     assert al + "- demonstrations = 3: +10.0 [+10.0, +10.0] (n = 2)" in text
+    assert "NIRL minus AL (demos), paired by run" in text  # NIRL against every other learner too
     assert "rule minus BC" not in text and "SCIRL minus BC" not in text  # a reference; no common point
     assert "(transfer: not computed yet)" in text

@@ -8,8 +8,8 @@ method):
 - how much of its clean-demonstration success each keeps with each flawed demonstrator;
 - how much of the sensor expert's success each keeps where it was never trained;
 - where the first learner (NIRL) and behaviour cloning differ, paired (on the demonstrations axis,
-  every other learner against behaviour cloning too; on the demonstrator axis, NIRL-MAP against
-  NIRL: the paper's MAP pretreatment on minus off).
+  every other learner against behaviour cloning, and NIRL against it, too; on the demonstrator
+  axis, NIRL-MAP against NIRL: the paper's MAP pretreatment on minus off).
 
     python docs/scripts/suite_reading.py [DIR]
         DIR: where the CSVs are (default docs/results/suites). docs/RESULTS.md holds the reading in a
@@ -135,8 +135,11 @@ def render(folder: Path) -> str:
         pairs = [versus(name, rows)]
         if name == "quality":  # the paper's MAP pretreatment (section IV-A), on minus off
             pairs.append(versus(name, rows, MAP, LEARNER))
-        if name == "demos":  # every other learner against the clone, where the suites separate methods
-            pairs += [versus(name, rows, m) for m in learners(rows) if m not in (LEARNER, CLONE)]
+        if name == "demos":  # where the suites separate methods: every other learner against the clone
+            others = [m for m in learners(rows) if m not in (LEARNER, CLONE)]  # and against NIRL
+            pairs += [versus(name, rows, m) for m in others] + [
+                versus(name, rows, LEARNER, m) for m in others
+            ]
         parts.append("\n".join([*reading(rows), "", *(line for p in pairs for line in p)]))
     return "\n".join(parts)
 
