@@ -185,11 +185,16 @@ def test_the_learner_trains_on_the_pretreated_demonstrations_when_asked(dataset)
     from nirl_mj.learn.loop import IrlLoop
 
     relabelled, report = map_pretreat(dataset)
+    majority, _ = map_pretreat(dataset, "empirical")
     assert report.pairs_changed > 0  # the dataset has ambiguous states: a test that can fail
+    # ... on which the two priors disagree (state A: uniform -> backward, empirical -> forward)
+    assert stack_pairs(relabelled)[1].tolist() != stack_pairs(majority)[1].tolist()
     on = IrlLoop(LearnerConfig.preset("default", pretreatment="map"), dataset, seed=0)
+    by_majority = IrlLoop(LearnerConfig.preset("default", pretreatment="map-majority"), dataset, seed=0)
     off = IrlLoop(LearnerConfig.preset("default"), dataset, seed=0)
     assert on.demo_actions.tolist() == stack_pairs(relabelled)[1].tolist()
+    assert by_majority.demo_actions.tolist() == stack_pairs(majority)[1].tolist()
     assert off.demo_actions.tolist() == stack_pairs(dataset)[1].tolist()
     assert LearnerConfig.from_record({}).loop.pretreatment == "none"  # records before it: as recorded
-    with pytest.raises(ValueError, match="unknown pretreatment 'mle'; accepted: none, map"):
+    with pytest.raises(ValueError, match="unknown pretreatment 'mle'; accepted: none, map, map-majority"):
         LearnerConfig.preset("default", pretreatment="mle")

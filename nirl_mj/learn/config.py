@@ -29,6 +29,8 @@ METHODS = ("nirl", "al", "re", "scirl")
 """The reward steps, by method name (``nirl_mj.learn.methods`` builds them)."""
 REWARD_SOURCES = ("learned", "progress", "constant")
 SELECTIONS = ("demo_balanced", "last", "demo_accuracy", "validation")
+PRETREATMENTS = {"none": None, "map": "uniform", "map-majority": "empirical"}
+"""``pretreatment`` -> the prior of eq. 10 that ``learn.pretreat.map_pretreat`` applies (None: none)."""
 TERMINAL_VALUES = ("learned", "outcome")  # learn/terminal.py
 EXPECTATIONS = ("state", "trajectory", "suffix")
 MATCHINGS = {
@@ -90,7 +92,8 @@ class LoopConfig:
     n_step: int = 3
     train_drive: str = "planar"  # the training rollouts' drive (same kinematics, ~1.9x the decisions/s)
     # "map": the demonstrations' ambiguous states relabelled with eq. 10's MAP action before anything
-    # reads them (paper section IV-A, learn/pretreat.py, uniform prior); "none": as recorded
+    # reads them (paper section IV-A, learn/pretreat.py, uniform prior); "map-majority": eq. 10 with
+    # the empirical prior, i.e. each ambiguous state's most frequent action; "none": as recorded
     pretreatment: str = "none"
 
     @property
@@ -106,7 +109,7 @@ class LoopConfig:
         _choice("terminal_value", self.terminal_value, TERMINAL_VALUES)
         _choice("train_drive", self.train_drive, ("planar", "tyre", "rollers"))
         _choice("bootstrap", self.bootstrap, ("sarsa", "q"))
-        _choice("pretreatment", self.pretreatment, ("none", "map"))
+        _choice("pretreatment", self.pretreatment, tuple(PRETREATMENTS))
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip

@@ -38,7 +38,7 @@ from nirl_mj.data.outcomes import outcome_rates
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, stack_pairs
 from nirl_mj.data.transitions import Transitions
 from nirl_mj.learn import network, sarsa
-from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.config import PRETREATMENTS, LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
@@ -153,8 +153,9 @@ class IrlLoop:
     def __init__(self, config: LearnerConfig, demos: list[Trajectory], seed: int) -> None:
         if not demos:
             raise ValueError("the IRL loop needs at least one demonstration")
-        if config.loop.pretreatment == "map":
-            demos, _ = map_pretreat(demos)
+        prior = PRETREATMENTS[config.loop.pretreatment]
+        if prior is not None:
+            demos, _ = map_pretreat(demos, prior)
         self.config = config
         self.loop = config.loop
         self.seed = seed
