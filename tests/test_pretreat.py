@@ -35,6 +35,13 @@ def traj(pairs: list[tuple[int, int]], final_state: int = 99) -> Trajectory:
     )
 
 
+PAIRS = [
+    [(0, FWD), (1, FWD), (0, BACK), (2, L30), (1, FWD), (1, FWD)],
+    [(0, FWD), (1, FWD), (3, L60), (0, BACK), (1, FWD)],
+    [(0, FWD), (2, R30), (1, FWD), (1, FWD)],
+]
+
+
 @pytest.fixture
 def dataset():
     """State A (id 0): forward 3 times, backward 2 times. Forward is common overall
@@ -46,11 +53,7 @@ def dataset():
     State C (id 2): left30 once, right30 once, each taken only there: a tie
     under both priors -> left30 (lowest index). State D (id 3): left60 only.
     """
-    return [
-        traj([(0, FWD), (1, FWD), (0, BACK), (2, L30), (1, FWD), (1, FWD)]),
-        traj([(0, FWD), (1, FWD), (3, L60), (0, BACK), (1, FWD)]),
-        traj([(0, FWD), (2, R30), (1, FWD), (1, FWD)]),
-    ]
+    return [traj(pairs) for pairs in PAIRS]
 
 
 def labels(trajs):
@@ -198,3 +201,26 @@ def test_the_learner_trains_on_the_pretreated_demonstrations_when_asked(dataset)
     assert LearnerConfig.from_record({}).loop.pretreatment == "none"  # records before it: as recorded
     with pytest.raises(ValueError, match="unknown pretreatment 'mle'; accepted: none, map, map-majority"):
         LearnerConfig.preset("default", pretreatment="mle")
+
+
+def test_inspect_reports_what_each_prior_would_relabel(tmp_path, capsys):
+    """``nirl-mj inspect``: state A's 3 forwards become backward under the uniform prior, its 2
+    backwards forward under the empirical one; state C's right30 becomes left30 under both (a tie)."""
+    import dataclasses
+    import json
+
+    from nirl_mj.cli import main
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.sim import spec
+
+    task = spec.load_task("navigate").to_dict()
+    path = tmp_path / "d.npz"
+    # the fixture's dataset, ending in state 8: its final state 99 has a danger level no sensor gives
+    save_dataset(path, [dataclasses.replace(traj(pairs, final_state=8), task=task) for pairs in PAIRS])
+    assert main(["inspect", str(path), "--json"]) == 0
+    out = capsys.readouterr().out
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert (summary["map_pairs_changed"], summary["map_majority_pairs_changed"]) == (4, 3)
+    # 15 pairs: uniform leaves forward 7 (10 - 3) and backward 5; empirical forward 12, backward 0.
+    assert 'pretreatment = "map") would relabel 4 of 15 pairs' in out and "backward 33.3%" in out
+    assert 'pretreatment = "map-majority") would relabel 3 of 15 pairs' in out and "forward 80.0%" in out

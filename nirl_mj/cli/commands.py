@@ -196,16 +196,20 @@ def cmd_inspect(args: argparse.Namespace) -> int:
         print(f"warning: {empty} of {len(trajectories)} trajectories end before their first decision; "
               f"{usable}")  # fmt: skip
     pred = _summary(trajectories, summary)
-    changed = None
+    changed = {}
     if summary.get("action_kind", "discrete") == "discrete":  # MAP relabels among the six actions
-        _, report = map_pretreat(trajectories)
-        changed = report.pairs_changed
-        print(
-            f"MAP pretreatment (eq. 10, uniform prior) would relabel {report.pairs_changed} of "
-            f"{report.pairs_total} pairs ({report.ambiguous_states} states seen with several actions)"
-        )
+        for prior, setting in (("uniform", "map"), ("empirical", "map-majority")):
+            relabelled, report = map_pretreat(trajectories, prior)
+            changed[setting] = report.pairs_changed
+            shares = "  ".join(f"{a} {f:.1%}" for a, f in summarise(relabelled)["action_fractions"].items())
+            print(
+                f'MAP pretreatment (eq. 10, {prior} prior, pretreatment = "{setting}") would relabel '
+                f"{report.pairs_changed} of {report.pairs_total} pairs ({report.ambiguous_states} states "
+                f"seen with several actions); actions after it: {shares}"
+            )
     if args.json:
-        print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": changed}))
+        print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": changed.get("map"),
+                          "map_majority_pairs_changed": changed.get("map-majority")}))  # fmt: skip
     return 0
 
 
