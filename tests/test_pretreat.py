@@ -224,3 +224,20 @@ def test_inspect_reports_what_each_prior_would_relabel(tmp_path, capsys):
     # 15 pairs: uniform leaves forward 7 (10 - 3) and backward 5; empirical forward 12, backward 0.
     assert 'pretreatment = "map") would relabel 4 of 15 pairs' in out and "backward 33.3%" in out
     assert 'pretreatment = "map-majority") would relabel 3 of 15 pairs' in out and "forward 80.0%" in out
+    # the states each prior relabels most, state A first (phi: V = 1, nothing else)
+    assert "  D 0000000 V 1 I 0 U 0000000: 5 pairs (forward 3, backward 2) -> backward\n" in out
+    assert "  D 0000000 V 1 I 0 U 0000000: 5 pairs (forward 3, backward 2) -> forward\n" in out
+
+
+def test_relabelled_states_lists_the_states_that_changed_most(dataset):
+    from nirl_mj.learn.pretreat import relabelled_states
+
+    uniform = relabelled_states(dataset, map_pretreat(dataset)[0])
+    # state A (fwd 3, back 2) -> backward: 3 pairs changed; state C (left30 1, right30 1) -> left30: 1.
+    assert [(int(r.phi[7]), r.recorded.tolist(), r.action, r.changed) for r in uniform] == [
+        (1, [3, 0, 0, 0, 0, 2], BACK, 3),
+        (3, [0, 1, 0, 1, 0, 0], L30, 1),
+    ]
+    majority = relabelled_states(dataset, map_pretreat(dataset, "empirical")[0], top=1)
+    assert [(int(r.phi[7]), r.action, r.changed) for r in majority] == [(1, FWD, 2)]
+    assert relabelled_states(dataset, dataset) == []  # nothing relabelled

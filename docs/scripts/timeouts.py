@@ -5,10 +5,10 @@ forward, ... in front of an obstacle; a turn repeated on a circle near the targe
 run's policy on its held-out test arenas (as ``nirl-mj eval``, nothing written) and prints the
 outcome rates, then for each timeout the cycle it ends in (``nirl_mj.data.cycles.final_cycle``), how
 many decisions it lasts, how far (metres) the robot's positions over it stray from their mean, the
-states of its last period (D levels of S1-S4 and S7-S9, V, I) and, for a run with a learned reward,
-the mean r_theta(s, a) per decision over the cycle; then the count of timeouts by cycle (a cycle
-met at another phase counts as the same), and r_theta per decision over the episodes that reached
-the target, to set the cycles' beside.
+states of its last period (D levels of S1-S4 and S7-S9, V, I, wall flags U) and, for a run with a
+learned reward, the mean r_theta(s, a) per decision over the cycle; then the count of timeouts by
+cycle (a cycle met at another phase counts as the same), and r_theta per decision over the episodes
+that reached the target, to set the cycles' beside.
 
     python docs/scripts/timeouts.py RUN [--tests 10] [--seed 0] [--which selected]
 """
@@ -27,13 +27,8 @@ from nirl_mj.data.rundir import RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.subjects import run_subject
+from nirl_mj.inspect.text import phi_text
 from nirl_mj.sim.task import make_env
-
-
-def state_text(phi) -> str:
-    """D levels of S1-S4, S7-S9, then V and I, of one phi(s)."""
-    d = "".join(str(int(v)) for v in phi[:7])
-    return f"D {d} V {int(phi[7])} I {int(phi[8])}"
 
 
 def lowest_rotation(actions: tuple[int, ...]) -> tuple[int, ...]:
@@ -82,7 +77,7 @@ def main() -> None:
             continue
         names = ", ".join(ACTION_NAMES[a] for a in cycle.actions)
         kinds[", ".join(ACTION_NAMES[a] for a in lowest_rotation(cycle.actions))] += 1
-        states = "; ".join(state_text(phi) for phi in cycle.states)
+        states = "; ".join(phi_text(phi) for phi in cycle.states)
         paid = (
             ""
             if reward is None

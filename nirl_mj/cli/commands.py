@@ -15,6 +15,7 @@ from tqdm import tqdm
 
 from nirl_mj.data.assignments import parse_assignment
 from nirl_mj.data.dataset import load_dataset, save_dataset
+from nirl_mj.data.features import ACTION_NAMES
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
@@ -31,10 +32,10 @@ from nirl_mj.experiments.training import saved_settings, train
 from nirl_mj.experts import make_expert
 from nirl_mj.inspect import video
 from nirl_mj.inspect.recording import Recording, copy_recording, finish_training, record_demonstrations
-from nirl_mj.inspect.text import episode_line, evaluation_line, predictability_line, summary_lines
+from nirl_mj.inspect.text import episode_line, evaluation_line, phi_text, predictability_line, summary_lines
 from nirl_mj.learn.config import LearnerConfig, checked_changes
 from nirl_mj.learn.predictability import predictability
-from nirl_mj.learn.pretreat import map_pretreat
+from nirl_mj.learn.pretreat import map_pretreat, relabelled_states
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.rollouts import Backend, make_rollouts
@@ -207,6 +208,9 @@ def cmd_inspect(args: argparse.Namespace) -> int:
                 f"{report.pairs_changed} of {report.pairs_total} pairs ({report.ambiguous_states} states "
                 f"seen with several actions); actions after it: {shares}"
             )
+            for r in relabelled_states(trajectories, relabelled):
+                was = ", ".join(f"{ACTION_NAMES[a]} {n}" for a, n in enumerate(r.recorded) if n)
+                print(f"  {phi_text(r.phi)}: {r.recorded.sum()} pairs ({was}) -> {ACTION_NAMES[r.action]}")
     if args.json:
         print(json.dumps({**summary, "predictability": pred, "map_pairs_changed": changed.get("map"),
                           "map_majority_pairs_changed": changed.get("map-majority")}))  # fmt: skip

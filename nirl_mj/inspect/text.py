@@ -5,6 +5,13 @@ from __future__ import annotations
 from nirl_mj.data.trajectory import Trajectory, path_length
 
 
+def phi_text(phi) -> str:
+    """One phi(s) (16 values) as "D 0000000 V 1 I 0 U 0000000": the danger levels of S1-S4 and S7-S9,
+    the target's sector and whether it is detected, the wall flags of the same sensors."""
+    d, u = ("".join(str(int(v)) for v in part) for part in (phi[0:7], phi[9:16]))
+    return f"D {d} V {int(phi[7])} I {int(phi[8])} U {u}"
+
+
 def episode_line(t: Trajectory) -> str:
     """Arena seed, outcome, decisions and metres driven of one episode."""
     return f"seed {t.arena_seed:10d}  {t.outcome:13s} steps {len(t):4d}  path {path_length(t):6.1f} m"

@@ -148,3 +148,39 @@ def map_pretreat(
         prior=tuple(float(p) for p in probs),
     )
     return out, report
+
+
+@dataclass(frozen=True)
+class Relabelled:
+    """One state that :func:`map_pretreat` relabelled: ``phi`` (16,), ``recorded`` (6,) action counts
+    as demonstrated, ``action`` the label every pair of the state now has."""
+
+    phi: np.ndarray
+    recorded: np.ndarray
+    action: int
+
+    @property
+    def changed(self) -> int:
+        """Pairs of this state whose action changed."""
+        return int(self.recorded.sum() - self.recorded[self.action])
+
+
+def relabelled_states(
+    before: Sequence[Trajectory], after: Sequence[Trajectory], top: int = 3
+) -> list[Relabelled]:
+    """The ``top`` states whose relabelling changed the most pairs (most first; ties by phi's order),
+    from a dataset and :func:`map_pretreat`'s output for it."""
+    states, recorded = stack_pairs(list(before))
+    _, relabelled = stack_pairs(list(after))
+    if recorded.size == 0:
+        return []
+    unique, state_id = np.unique(states, axis=0, return_inverse=True)
+    state_id = state_id.reshape(-1)
+    counts = np.zeros((len(unique), N_ACTIONS), dtype=np.int64)
+    np.add.at(counts, (state_id, recorded.astype(np.int64)), 1)
+    diff = recorded != relabelled
+    changed = np.bincount(state_id, weights=diff, minlength=len(unique)).astype(np.int64)
+    label = np.zeros(len(unique), dtype=np.int64)
+    label[state_id[diff]] = relabelled[diff]  # map_pretreat gives every pair of a state one label
+    order = [s for s in np.argsort(-changed, kind="stable") if changed[s] > 0][:top]
+    return [Relabelled(unique[s], counts[s], int(label[s])) for s in order]
