@@ -170,7 +170,8 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     and NIRL minus each, paired by run; a pair with no common point is left out."""
     render = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))["render"]
     head = "suite,axis,value,method,run,tests,success,collision,timeout,spl,sct\n"
-    quality = {"NIRL": [0.5, 0.6], "NIRL-MAP": [0.7, 0.7], "BC": [0.2, 0.2], "expert": [0.9, 0.9]}
+    quality = {"NIRL": [0.5, 0.6], "NIRL-MAP": [0.7, 0.7], "NIRL-MAP-majority": [0.6, 0.6], "BC": [0.2, 0.2],
+               "expert": [0.9, 0.9]}  # fmt: skip
     (tmp_path / "quality.csv").write_text(head + "".join(
         f"quality,demonstrator,{point},{m},{r},10,{v},0,0,0,0\n"
         for point in ("sensor", "sensor-random30") for m, vs in quality.items() for r, v in enumerate(vs)
@@ -184,6 +185,9 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     # NIRL-MAP minus NIRL: differences 0.2 and 0.1, mean 15 points; t(1) interval 0.15 +- 12.706 * 0.05.
     assert "NIRL-MAP minus NIRL (quality), paired by run" in text
     assert "- demonstrator = sensor-random30: +15.0 [-48.5, +78.5] (n = 2)" in text
+    # NIRL-MAP-majority minus NIRL: 0.1 and 0.0, mean 5 points, half-width 12.706 * 0.05
+    majority = "NIRL-MAP-majority minus NIRL (quality), paired by run, points [95 % interval]:\n\n"
+    assert majority + "- demonstrator = sensor: +5.0 [-58.5, +68.5] (n = 2)" in text
     # AL minus BC: 0.1 in both runs, no spread.
     al = "AL minus BC (demos), paired by run, points [95 % interval]:\n\n"
     assert al + "- demonstrations = 3: +10.0 [+10.0, +10.0] (n = 2)" in text
