@@ -33,7 +33,7 @@ from nirl_mj.experts import make_expert
 from nirl_mj.inspect import video
 from nirl_mj.inspect.recording import Recording, copy_recording, finish_training, record_demonstrations
 from nirl_mj.inspect.text import episode_line, evaluation_line, phi_text, predictability_line, summary_lines
-from nirl_mj.learn.config import LearnerConfig, checked_changes
+from nirl_mj.learn.config import PRETREATMENTS, LearnerConfig, checked_changes
 from nirl_mj.learn.predictability import predictability
 from nirl_mj.learn.pretreat import map_pretreat, relabelled_states
 from nirl_mj.sim import spec as specs
@@ -199,7 +199,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     pred = _summary(trajectories, summary)
     changed = {}
     if summary.get("action_kind", "discrete") == "discrete":  # MAP relabels among the six actions
-        for prior, setting in (("uniform", "map"), ("empirical", "map-majority")):
+        for setting, prior in ((k, v) for k, v in PRETREATMENTS.items() if v is not None):
             relabelled, report = map_pretreat(trajectories, prior)
             changed[setting] = report.pairs_changed
             shares = "  ".join(f"{a} {f:.1%}" for a, f in summarise(relabelled)["action_fractions"].items())
