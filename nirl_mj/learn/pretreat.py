@@ -88,6 +88,16 @@ def _prior_fractions(
     return [Fraction(float(v)) for v in p]
 
 
+def _state_counts(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Groups identical phi(s) rows (exact equality of the float32 values): the distinct states
+    (S, 16), each pair's state id (M,), and the action counts per state (S, 6)."""
+    unique, state_id = np.unique(states, axis=0, return_inverse=True)
+    state_id = state_id.reshape(-1)
+    counts = np.zeros((len(unique), N_ACTIONS), dtype=np.int64)
+    np.add.at(counts, (state_id, actions.astype(np.int64)), 1)
+    return unique, state_id, counts
+
+
 def map_pretreat(
     trajectories: Sequence[Trajectory], prior: str | Sequence[float] | np.ndarray | None = None
 ) -> tuple[list[Trajectory], MapReport]:
@@ -104,12 +114,8 @@ def map_pretreat(
     if m == 0:
         probs = _prior_fractions(prior, np.zeros(N_ACTIONS, np.int64))
         return trajectories, MapReport(0, 0, 0, 0, 0, tuple(float(p) for p in probs))
-    # Identical phi(s) rows -> one state id (exact equality of the float32 values).
-    _, state_id = np.unique(states, axis=0, return_inverse=True)
-    state_id = state_id.reshape(-1)
-    n_states = int(state_id.max()) + 1
-    counts = np.zeros((n_states, N_ACTIONS), dtype=np.int64)
-    np.add.at(counts, (state_id, actions.astype(np.int64)), 1)
+    _, state_id, counts = _state_counts(states, actions)
+    n_states = counts.shape[0]
     action_counts = counts.sum(axis=0)
     probs = _prior_fractions(prior, action_counts)
 
@@ -174,10 +180,7 @@ def relabelled_states(
     _, relabelled = stack_pairs(list(after))
     if recorded.size == 0:
         return []
-    unique, state_id = np.unique(states, axis=0, return_inverse=True)
-    state_id = state_id.reshape(-1)
-    counts = np.zeros((len(unique), N_ACTIONS), dtype=np.int64)
-    np.add.at(counts, (state_id, recorded.astype(np.int64)), 1)
+    unique, state_id, counts = _state_counts(states, recorded)
     diff = recorded != relabelled
     changed = np.bincount(state_id, weights=diff, minlength=len(unique)).astype(np.int64)
     label = np.zeros(len(unique), dtype=np.int64)
