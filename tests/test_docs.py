@@ -166,8 +166,8 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
 
 def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(tmp_path):
     """docs/scripts/suite_reading.py on a hand-built quality and demos suite: NIRL-MAP minus NIRL (the
-    paper's pretreatment on minus off) and, on the demonstrations axis, each other learner minus BC,
-    and NIRL minus each, paired by run; a pair with no common point is left out."""
+    paper's pretreatment on minus off), each other learner minus BC and NIRL minus each, paired by
+    run, a row per pair in a table per axis; a pair with no common point is left out."""
     render = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))["render"]
     head = "suite,axis,value,method,run,tests,success,collision,timeout,spl,sct\n"
     quality = {"NIRL": [0.5, 0.6], "NIRL-MAP": [0.7, 0.7], "NIRL-MAP-majority": [0.6, 0.6], "BC": [0.2, 0.2],
@@ -183,14 +183,14 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     ) + "demos,demonstrations,100,SCIRL,0,10,0.5,0,0,0,0\n")  # fmt: skip
     text = render(tmp_path)
     # NIRL-MAP minus NIRL: differences 0.2 and 0.1, mean 15 points; t(1) interval 0.15 +- 12.706 * 0.05.
-    assert "NIRL-MAP minus NIRL (quality), paired by run" in text
-    assert "- demonstrator = sensor-random30: +15.0 [-48.5, +78.5] (n = 2)" in text
+    # Its row in the demonstrator table: sensor, then sensor-random30.
+    assert "| demonstrator | sensor | sensor-random30 |" in text
+    assert "| NIRL-MAP minus NIRL | +15.0 [-48.5, +78.5] (n = 2) | +15.0 [-48.5, +78.5] (n = 2) |" in text
     # NIRL-MAP-majority minus NIRL: 0.1 and 0.0, mean 5 points, half-width 12.706 * 0.05
-    majority = "NIRL-MAP-majority minus NIRL (quality), paired by run, points [95 % interval]:\n\n"
-    assert majority + "- demonstrator = sensor: +5.0 [-58.5, +68.5] (n = 2)" in text
-    # AL minus BC: 0.1 in both runs, no spread.
-    al = "AL minus BC (demos), paired by run, points [95 % interval]:\n\n"
-    assert al + "- demonstrations = 3: +10.0 [+10.0, +10.0] (n = 2)" in text
-    assert "NIRL minus AL (demos), paired by run" in text  # NIRL against every other learner too
+    assert "| NIRL-MAP-majority minus NIRL | +5.0 [-58.5, +68.5] (n = 2) |" in text
+    # AL minus BC: 0.1 in both runs, no spread; 100 demonstrations: neither has a run there.
+    assert "| demonstrations | 3 | 30 | 100 |" in text
+    assert "| AL minus BC | +10.0 [+10.0, +10.0] (n = 2) | +10.0 [+10.0, +10.0] (n = 2) | - |" in text
+    assert "| NIRL minus AL |" in text  # NIRL against every other learner too
     assert "rule minus BC" not in text and "SCIRL minus BC" not in text  # a reference; no common point
     assert "(transfer: not computed yet)" in text
