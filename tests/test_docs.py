@@ -164,6 +164,16 @@ def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
         assert bc and all(p["mean"] == 0.0 and p["equal"] == p["runs"] for p in bc.values())
 
 
+def test_suite_reading_marks_a_pair_with_other_than_five_runs():
+    """A paired difference over the 5 runs the caption names carries no n; over 1 run it is that run's
+    difference (not the two rows' means over their own runs), with n; over none, a dash."""
+    interval = runpy.run_path(str(ROOT / "docs" / "scripts" / "suite_reading.py"))["interval"]
+    five = {r: 0.5 for r in range(5)}
+    assert interval({r: 0.6 for r in range(5)}, five) == "+10.0 [+10.0, +10.0]"
+    assert interval({0: 0.9, 7: 0.0}, {0: 0.5, 8: 1.0}) == "+40.0 (n = 1)"
+    assert interval({0: 0.9}, {1: 0.5}) == "-"
+
+
 def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(tmp_path):
     """docs/scripts/suite_reading.py on a hand-built quality and demos suite: NIRL-MAP minus NIRL (the
     paper's pretreatment on minus off), each other learner minus BC and NIRL minus each, paired by

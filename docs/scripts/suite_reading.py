@@ -7,8 +7,8 @@ method):
 - from how few demonstrations each learner reaches 90 % of its own 30-demonstration success;
 - how much of its clean-demonstration success each keeps with each flawed demonstrator;
 - how much of the sensor expert's success each keeps where it was never trained;
-- where the learners differ, paired: NIRL and every other learner against behaviour cloning, NIRL
-  against each other learner, and each NIRL-MAP row against NIRL (a MAP pretreatment on minus
+- where the learners differ, paired: each learner but the NIRL-MAP rows against behaviour cloning,
+  NIRL against each other learner, and each NIRL-MAP row against NIRL (a MAP pretreatment on minus
   off), one table per axis.
 
     python docs/scripts/suite_reading.py [DIR]
@@ -26,7 +26,7 @@ from nirl_mj.experiments.tidy import read
 
 REFERENCES = ("expert", "rule", "forward", "PPO-reward", "DQN-reward", "DAgger")
 LEARNER, CLONE, MAP = "NIRL", "BC", "NIRL-MAP"
-FULL = 5  # runs per point that the issue asks for; fewer are marked with n
+FULL = 5  # runs per point that the issue asks for; other counts are marked with n
 
 
 def success(rows: list[dict], axis: str, value: str, method: str) -> dict[int, float]:
@@ -40,24 +40,25 @@ def mean(by_run: dict[int, float]) -> float:
 
 
 def interval(a: dict[int, float], b: dict[int, float]) -> str:
-    """a - b paired by run: mean [95 % interval] in points, over the runs both have (n when fewer
-    than 5)."""
+    """a - b paired by run: mean [95 % interval] in points, over the runs both have (n when not 5)."""
     runs = sorted(set(a) & set(b))
-    n = f" (n = {len(runs)})" if len(runs) < FULL else ""
-    if len(runs) < 2:
-        return f"{100 * (mean(a) - mean(b)):+.1f}{n}"
+    n = f" (n = {len(runs)})" if len(runs) != FULL else ""
+    if not runs:
+        return "-"
+    if len(runs) == 1:
+        return f"{100 * (a[runs[0]] - b[runs[0]]):+.1f}{n}"
     d = paired([a[r] for r in runs], [b[r] for r in runs])
     return f"{100 * d['mean']:+.1f} [{100 * d['ci'][0]:+.1f}, {100 * d['ci'][1]:+.1f}]{n}"
 
 
 def share(part: dict[int, float], whole: dict[int, float]) -> str:
     """The mean of ``part`` as a share of the mean of ``whole``, over the runs both have (n in brackets
-    when fewer than 5)."""
+    when not 5)."""
     runs = sorted(set(part) & set(whole))
     total = sum(whole[r] for r in runs)
     if not runs or total <= 0:
         return "-"
-    n = f" (n = {len(runs)})" if len(runs) < FULL else ""
+    n = f" (n = {len(runs)})" if len(runs) != FULL else ""
     return f"{100 * sum(part[r] for r in runs) / total:.0f} %{n}"
 
 
@@ -114,8 +115,7 @@ def transfer_reading(rows: list[dict]) -> list[str]:
 
 def pairs(rows: list[dict]) -> list[tuple[str, str]]:
     """The paired differences read in every suite: NIRL minus BC, each other learner minus BC and NIRL
-    minus each (where the suites separate methods), and each NIRL-MAP row minus NIRL (a MAP
-    pretreatment on minus off)."""
+    minus each, and each NIRL-MAP row minus NIRL (a MAP pretreatment on minus off)."""
     maps = [m for m in learners(rows) if m.startswith(MAP)]
     others = [m for m in learners(rows) if m not in (LEARNER, CLONE, *maps)]
     return [(LEARNER, CLONE), *((m, CLONE) for m in others), *((LEARNER, m) for m in others),
