@@ -130,9 +130,8 @@ def versus(name: str, rows: list[dict]) -> list[str]:
         points = values(rows, axis)
         lines = []
         for first, second in pairs(rows):
-            runs = [(success(rows, axis, v, first), success(rows, axis, v, second)) for v in points]
-            if any(a and b for a, b in runs):
-                cells = [interval(a, b) if a and b else "-" for a, b in runs]
+            cells = [interval(success(rows, axis, v, first), success(rows, axis, v, second)) for v in points]
+            if any(c != "-" for c in cells):
                 lines.append(f"| {first} minus {second} | " + " | ".join(cells) + " |")
         if lines:
             head = f"| {axis} | " + " | ".join(points) + " |"
