@@ -204,3 +204,13 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     assert "| NIRL minus AL |" in text  # NIRL against every other learner too
     assert "rule minus BC" not in text and "SCIRL minus BC" not in text  # a reference; no common point
     assert "(transfer: not computed yet)" in text
+
+
+def test_iterate_study_picks_the_first_and_the_last_of_the_best_scores():
+    """docs/scripts/iterate_study.py: the loop's rule (first best) and a last-best tie-break, on ties
+    and without."""
+    import numpy as np
+
+    picks = runpy.run_path(str(ROOT / "docs" / "scripts" / "iterate_study.py"))["picks"]
+    assert picks(np.array([0.2, 1.0, 0.5, 1.0, 0.9])) == {"first_best": 1, "last_best": 3}
+    assert picks(np.array([0.2, 0.7, 0.5])) == {"first_best": 1, "last_best": 1}
