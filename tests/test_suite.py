@@ -304,3 +304,22 @@ def test_points_computes_some_values_now_and_the_others_later(training_suite, tm
     assert cells(out) == reference
     assert main(args(path, out, "--points", "sensor-random99")) == 2
     assert "--points sensor-random99: not a value of demonstrator" in capsys.readouterr().err
+
+
+def test_every_curve_of_a_suite_with_more_rows_than_ten_colours_has_its_own(monkeypatch):
+    """The transfer suite draws 12 rows: past the default 10 colours no two curves may share one."""
+    import nirl_mj.experiments.suite as suite
+    from nirl_mj.experiments.definition import value_name
+
+    transfer = load_experiment("suites/transfer")
+    axis = transfer.axes[0]
+    points = [
+        {"axis": axis.name, "value": value_name(v), "method": m.name, "runs": 5, "avg": 0.5, "ci": [0.4, 0.6],
+         "flat": False}
+        for m in transfer.methods for v in axis.values
+    ]  # fmt: skip
+    drawn = {}
+    monkeypatch.setattr(suite, "write_figure", lambda path, fig: drawn.setdefault("fig", fig))
+    suite.curve_plot(Path("unused.png"), {"points": points}, transfer, axis)
+    colours = [line.get_color() for line in drawn["fig"].axes[0].get_lines()]
+    assert len(colours) == len(transfer.methods) > 10 and len(set(map(str, colours))) == len(colours)

@@ -326,18 +326,22 @@ def curve_plot(path: Path, summary: dict, experiment: Experiment, axis: Axis) ->
     from nirl_mj.inspect.figures import plt
 
     fig, ax = plt.subplots(figsize=(6.8, 4.2), dpi=110)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     names = [value_name(v) for v in axis.values]
     x = list(range(len(names)))
-    drawn = 0  # colours go to the methods with a result, so that no two drawn ones share one
+    drawn = []  # colours go to the methods with a result, so that no two drawn ones share one
     for method in experiment.methods:
         found = {
             p["value"]: p for p in summary["points"] if p["axis"] == axis.name and p["method"] == method.name
         }
         done = [(i, found[n]) for i, n in enumerate(names) if found[n].get("runs")]
-        if not done:
-            continue
-        colour, drawn = colours[drawn % len(colours)], drawn + 1
+        if done:
+            drawn.append((method, done))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    if len(drawn) > len(colours):  # more rows than the default 10 colours: tab20, its dark shades first
+        pairs = plt.get_cmap("tab20").colors
+        colours = [*pairs[::2], *pairs[1::2]]
+    for k, (method, done) in enumerate(drawn):
+        colour = colours[k % len(colours)]
         flat = done[0][1]["flat"]
         xs = [x[0] - 0.2, x[-1] + 0.2] if flat else [i for i, _ in done]
         ys = [done[0][1]] * 2 if flat else [p for _, p in done]
