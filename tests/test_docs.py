@@ -211,6 +211,9 @@ def test_iterate_study_picks_the_first_and_the_last_of_the_best_scores():
     and without."""
     import numpy as np
 
-    picks = runpy.run_path(str(ROOT / "docs" / "scripts" / "iterate_study.py"))["picks"]
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "iterate_study.py"))
+    picks = script["picks"]
     assert picks(np.array([0.2, 1.0, 0.5, 1.0, 0.9])) == {"first_best": 1, "last_best": 3}
     assert picks(np.array([0.2, 0.7, 0.5])) == {"first_best": 1, "last_best": 1}
+    with pytest.raises(SystemExit, match="not a training run of the IRL loop"):
+        script["study"](ROOT / "no-such-run", 1, 10)

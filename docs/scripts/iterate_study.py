@@ -31,6 +31,9 @@ def study(run_dir: Path, tests: int, every: int) -> dict:
     from nirl_mj.experiments import seeds, training
     from nirl_mj.experiments.protocol import evaluate_policy
 
+    missing = [name for name in ("run.json", "checkpoint.npz") if not (Path(run_dir) / name).is_file()]
+    if missing:
+        raise SystemExit(f"error: {run_dir}: not a training run of the IRL loop (no {' or '.join(missing)})")
     task, _config, _demos, seed = training.saved_settings(run_dir)
     record = RunDir(run_dir).read_record()
     scores = np.asarray(RunDir(run_dir).read_checkpoint()["scores"], dtype=float)
