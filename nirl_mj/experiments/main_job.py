@@ -285,7 +285,7 @@ def report_rows(results: dict, paths: dict) -> dict:
     return rows
 
 
-_BEST = "the iteration whose network predicts the demonstrated actions best in {} (the earliest on a tie)"
+_BEST = "the iteration whose network predicts the demonstrated actions best in {} (the latest on a tie)"
 SELECTION_TEXT = {
     "demo_balanced": _BEST.format("balanced accuracy"),
     "demo_accuracy": _BEST.format("accuracy"),

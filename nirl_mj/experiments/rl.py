@@ -80,7 +80,8 @@ checkpoint (every one on a fresh arena); ``validation_success``, the checkpoint'
 the tests drive it, on the same :data:`VALIDATION_ARENAS` arenas of the validation domain at every
 checkpoint (paired: the same arenas and the same sampling stream). The last two read the task's
 success (recorded as ``task_success_selection``): for PPO and DQN, which read its reward anyway.
-The best score wins, the later checkpoint on a tie."""
+The best score wins, the later checkpoint on a tie (the rule of every method:
+``nirl_mj.learn.selection``)."""
 VALIDATION_ARENAS = 20
 """Arenas of the validation domain that ``validation_success`` drives every checkpoint on."""
 SUCCESS_WINDOW = 30

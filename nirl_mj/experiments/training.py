@@ -32,6 +32,7 @@ from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.loop import IrlLoop, Metrics, greedy_policy
 from nirl_mj.learn.reward import RewardModel
+from nirl_mj.learn.selection import latest_best
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.rollouts import CPU, Backend, Rollouts, make_rollouts
 
@@ -297,22 +298,23 @@ def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dic
     """The kept policy to report, by the configured rule, with how it was chosen.
 
     "validation": the ``final_candidates`` best first-round policies are evaluated
-    on the second round's arenas too, and the best over both rounds wins (earliest
-    on ties): picking the maximum of many noisy 20-arena estimates favours lucky
-    ones, a fresh estimate of the few best corrects that.
+    on the second round's arenas too, and the best over both rounds wins (the latest
+    on ties, as everywhere: ``nirl_mj.learn.selection``): picking the maximum of many
+    noisy 20-arena estimates favours lucky ones, a fresh estimate of the few best
+    corrects that.
     """
     loop = learner.loop
     first = learner.selected
     if not second_round or not learner.kept:
         return {"rule": loop.selection, "iteration": first}
-    order = sorted(range(len(learner.scores)), key=lambda i: (-learner.scores[i], i))
+    order = sorted(range(len(learner.scores)), key=lambda i: (-learner.scores[i], -i))
     candidates = sorted(order[: loop.final_candidates])
     combined = {}
     for i in candidates:
         policy = _greedy(learner.kept[i], learner.config)
         second = evaluate(None, policy, second_round, rollouts=rollouts)[0]["success_rate"]
         combined[i] = (learner.scores[i] + second) / 2
-    chosen = max(candidates, key=lambda i: (combined[i], -i))
+    chosen = candidates[latest_best([combined[i] for i in candidates])]
     return {
         "rule": f"{loop.selection}, best {loop.final_candidates} re-validated",
         "iteration": chosen,

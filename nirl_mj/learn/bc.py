@@ -32,6 +32,7 @@ from nirl_mj.learn.config import LearnerConfig
 from nirl_mj.learn.inputs import NetworkInputs
 from nirl_mj.learn.loop import demonstrated_pairs, greedy_policy
 from nirl_mj.learn.predictability import balanced_accuracy
+from nirl_mj.learn.selection import latest_best
 
 Pairs = tuple[np.ndarray, np.ndarray]
 """phi(s) (N, 16) and actions (N,)."""
@@ -97,7 +98,8 @@ def early_stopped(
     train: Pairs, held_out: Pairs, settings: CloneSettings, seed: int
 ) -> tuple[network.QNetwork, int, list[float]]:
     """The network fitted to ``train`` for the epoch count (1..``settings.epochs``) that predicts
-    the ``held_out`` actions best (balanced accuracy; the first best), that count, and every
+    the ``held_out`` actions best (balanced accuracy; the latest of the best,
+    ``nirl_mj.learn.selection``), that count, and every
     epoch's score: early stopping, the network kept as it was validated."""
     net, rng = _fresh(settings, seed)
     problem, held_inputs = _problem(*train, settings), settings.inputs(held_out[0])
@@ -106,10 +108,10 @@ def early_stopped(
         _epochs(net, problem, settings, 1, rng)
         predicted = network.greedy_actions(network.q_values(net, held_inputs))
         scores.append(balanced_accuracy(held_out[1], predicted))
-        if scores[-1] > best:
+        if scores[-1] >= best:
             best, best_weights = scores[-1], network.get_weights(net)
     network.set_weights(net, best_weights)
-    return net, int(np.argmax(scores)) + 1, scores
+    return net, latest_best(scores) + 1, scores
 
 
 def clone_pairs(

@@ -44,6 +44,7 @@ from nirl_mj.learn.methods import RolloutContext, reward_step
 from nirl_mj.learn.predictability import balanced_accuracy
 from nirl_mj.learn.pretreat import map_pretreat
 from nirl_mj.learn.reward import RewardModel, all_action_features
+from nirl_mj.learn.selection import latest_best
 from nirl_mj.learn.terminal import absorbing_values
 
 
@@ -307,7 +308,7 @@ class IrlLoop:
 
     def _score(self, accuracy: float, balanced: float, validation: float | None) -> float:
         """The selection score of this iteration's policy (``LoopConfig.selection``): the higher, the
-        better; the first best is chosen (:attr:`selected`)."""
+        better; the latest of the best is chosen (:attr:`selected`)."""
         rule = self.loop.selection
         if rule == "demo_accuracy":
             return accuracy
@@ -319,8 +320,9 @@ class IrlLoop:
 
     @property
     def selected(self) -> int:
-        """Index of the policy the configured rule picks (the first best)."""
-        return int(np.argmax(self.scores)) if self.scores else -1
+        """Index of the policy the configured rule picks (the latest of the best:
+        ``nirl_mj.learn.selection``)."""
+        return latest_best(self.scores)
 
     # -- checkpoints -------------------------------------------------------------------
 
