@@ -207,8 +207,8 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
 
 
 def test_iterate_study_picks_the_first_and_the_last_of_the_best_scores():
-    """docs/scripts/iterate_study.py: the loop's rule (first best) and a last-best tie-break, on ties
-    and without."""
+    """docs/scripts/iterate_study.py: the loop's rule before 6c30c7d (first best) and today's (latest
+    best), on ties and without."""
     import numpy as np
 
     script = runpy.run_path(str(ROOT / "docs" / "scripts" / "iterate_study.py"))

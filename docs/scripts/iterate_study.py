@@ -1,6 +1,7 @@
 """Does selection or training limit a learner? Success of several kept iterates of training runs on
 development arenas (the ``test`` domain, never the reported ``final`` one), beside the iterate that
-the run's selection rule picked (the first best score) and the one a last-best tie-break would pick.
+the first best score picks (the loop's rule before commit 6c30c7d, which made every method keep the
+latest of its best: ``nirl_mj.learn.selection``) and the one the latest best picks (the rule since).
 
 For runs of the NIRL loop (they keep every iterate's weights in checkpoint.npz). Each run is tested
 on ``--tests`` development arenas of its own seed, skipping every arena it has seen, so every
@@ -21,9 +22,11 @@ import numpy as np
 
 
 def picks(scores: np.ndarray) -> dict[str, int]:
-    """The iterate the first best score picks (the loop's rule) and the one the last best picks."""
-    best = np.flatnonzero(scores == scores.max())
-    return {"first_best": int(best[0]), "last_best": int(best[-1])}
+    """The iterate the first best score picks (the loop's rule before 6c30c7d) and the one the last
+    best picks (``latest_best``, the rule since)."""
+    from nirl_mj.learn.selection import latest_best
+
+    return {"first_best": int(np.argmax(scores)), "last_best": latest_best(scores.tolist())}
 
 
 def study(run_dir: Path, tests: int, every: int) -> dict:
