@@ -323,3 +323,82 @@ def test_every_curve_of_a_suite_with_more_rows_than_ten_colours_has_its_own(monk
     suite.curve_plot(Path("unused.png"), {"points": points}, transfer, axis)
     colours = [line.get_color() for line in drawn["fig"].axes[0].get_lines()]
     assert len(colours) == len(transfer.methods) > 10 and len(set(map(str, colours))) == len(colours)
+
+
+# -- restoring a published suite -----------------------------------------------------------------------
+
+
+def publish(out: Path, folder: Path, name: str) -> Path:
+    """What docs/scripts/publish_suites.sh keeps of an output directory: NAME.csv, NAME.experiment.json."""
+    folder.mkdir(exist_ok=True)
+    (folder / f"{name}.csv").write_text((out / "suite.csv").read_text())
+    (folder / f"{name}.experiment.json").write_text((out / "experiment.json").read_text())
+    return folder
+
+
+def test_a_lost_suite_is_restored_from_its_publication_and_computes_only_the_rest(
+    training_suite, tmp_path, capsys
+):
+    path, out, reference = training_suite
+    published = publish(out, tmp_path / "published", "training")
+    lost = tmp_path / "lost"
+    assert main(args(path, lost, "--restore", str(published), "--only", "BC,rule")) == 0
+    restored = cells(lost)
+    assert sorted(restored) == sorted(c for c in reference if ".BC-" in c or ".rule-" in c)
+    for cid, cell in restored.items():
+        assert cell.keys() <= reference[cid].keys() and cell["physics_error_rate"] == 0.0
+        assert all(cell[k] == pytest.approx(reference[cid][k], abs=1e-6) for k in cell)
+    record = json.loads((lost / "cells" / f"{next(iter(restored))}.json").read_text())
+    assert record["restored_from"] == str((published / "training.csv").resolve())
+    assert not (lost / "points" / "demonstrator-sensor" / "runs" / "BC").exists()  # no training run
+    assert main(args(path, lost)) == 0  # the rest: NIRL and the expert, computed
+    assert (lost / "suite.csv").read_text() == (out / "suite.csv").read_text()
+    capsys.readouterr()
+    assert main(args(path, lost, "--restore", str(published))) == 0  # nothing left to take
+    assert "restore: 0 finished cells taken" in capsys.readouterr().err
+
+
+def test_restore_refuses_another_experiment_and_skips_methods_computed_otherwise(
+    training_suite, tmp_path, capsys
+):
+    path, out, _ = training_suite
+    published = publish(out, tmp_path / "published", "training")
+    identity = json.loads((published / "training.experiment.json").read_text())
+    other = tmp_path / "other"
+    assert main(args(path, other, "--restore", str(tmp_path))) == 2
+    assert (
+        "holds no published suite training (training.csv and training.experiment.json"
+        in capsys.readouterr().err
+    )
+    (published / "training.experiment.json").write_text(json.dumps({**identity, "tests": 3}))
+    assert main(args(path, other, "--restore", str(published), "--only", "rule")) == 2
+    assert (
+        "another experiment than training's (it differs in: tests); nothing restored"
+        in capsys.readouterr().err
+    )
+    assert not (other / "cells").exists()
+    learners = {**identity["learners"], "NIRL": {**identity["learners"]["NIRL"], "epochs": 1}}
+    (published / "training.experiment.json").write_text(json.dumps({**identity, "learners": learners}))
+    assert main(args(path, other, "--restore", str(published), "--only", "NIRL,rule")) == 0
+    err = capsys.readouterr().err
+    assert "restore: not taken, another definition or learner settings in" in err and ": NIRL" in err
+    assert "restore: 2 finished cells taken" in err  # the rule's; NIRL's computed here instead
+
+
+def test_a_transfer_suite_is_restored_with_every_point_of_a_cell(tmp_path):
+    path, out = write(tmp_path, TRANSFER, "transfer"), tmp_path / "out"
+    assert main(args(path, out)) == 0
+    published = publish(out, tmp_path / "published", "transfer")
+    lines = (published / "transfer.csv").read_text().splitlines()
+    (published / "transfer.csv").write_text("\n".join(line for line in lines if not (
+        ",BC,1," in line and ",speed,1," in line)) + "\n")  # fmt: skip
+    lost = tmp_path / "lost"
+    assert main(args(path, lost, "--restore", str(published), "--only", "rule,BC")) == 0
+    restored, reference = cells(lost), cells(out)
+    assert sorted(restored) == sorted(reference)  # BC run 1, one point short, was computed again
+    assert restored["rule-run000"]["points"].keys() == reference["rule-run000"]["points"].keys()
+    assert "restored" not in json.dumps(cells(lost)["BC-run001"])
+    stored = json.loads((lost / "cells" / "BC-run001.json").read_text())
+    assert "restored_from" not in stored and "restored_from" in json.loads(
+        (lost / "cells" / "BC-run000.json").read_text()
+    )

@@ -467,7 +467,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     only, points = (tuple(n.strip() for n in (getattr(args, key, None) or "").split(",") if n.strip())
                     for key in ("only", "points"))  # fmt: skip
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
-                          getattr(args, "reuse", None), only, points)  # fmt: skip
+                          getattr(args, "reuse", None), only, points,
+                          restore=getattr(args, "restore", None))  # fmt: skip
     bars: list[tqdm] = []  # made once the number of cells is known
 
     def log(text: str) -> None:

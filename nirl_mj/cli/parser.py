@@ -121,6 +121,10 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         p.add_argument("--points", default=None, metavar="VALUES",
                        help="comma-separated values of the training axis: compute only their cells; the "
                        "tables show the others' finished cells (not part of the identity)")  # fmt: skip
+        p.add_argument("--restore", default=None, metavar="DIR",
+                       help="first take the finished cells of a published suite (DIR holds NAME.csv and "
+                       "NAME.experiment.json, as docs/results/suites; with --only, those methods' only), "
+                       "then compute the rest: for an output directory lost with its machine")  # fmt: skip
     if name == "compare":
         p.add_argument("--reuse", default=None, metavar="OLD",
                        help="first copy the cells an earlier output directory OLD finished as the same "

@@ -81,7 +81,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
             raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
         if not isinstance(saved, dict):
             raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
-        was, now = _unspelled(saved), _unspelled(identity)
+        was, now = unspelled_identity(saved), unspelled_identity(identity)
         differ = sorted(k for k in identity if was.get(k) != now.get(k))
         if differ and not (
             set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
@@ -105,7 +105,7 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
     return out
 
 
-def _unspelled(identity: dict) -> dict:
+def unspelled_identity(identity: dict) -> dict:
     """``identity`` without the learner changes as the file spells them (the experiment's
     ``[config]`` and each learner's ``config``): its resolved ``learners`` hold what they change, so
     a value the default already has, pinned in ``[config]`` or dropped from it, changes no cell."""
@@ -147,8 +147,8 @@ def grows(saved: dict, identity: dict, runs: int) -> bool:
     from nirl_mj.experiments.training import planned_seeds
     from nirl_mj.learn.config import LearnerConfig
 
-    new_methods = _unspelled(identity)["methods"]
-    if any(m not in new_methods for m in _unspelled(saved)["methods"]):
+    new_methods = unspelled_identity(identity)["methods"]
+    if any(m not in new_methods for m in unspelled_identity(saved)["methods"]):
         return False
     old, new = resolved_learners(saved), identity["learners"]
     if any(new.get(name) != flat for name, flat in old.items()):
@@ -314,12 +314,14 @@ class Execution:
     only: tuple[str, ...] = ()  # compare: run these methods' cells only, report the others as stored
     points: tuple[str, ...] = ()  # suite, training axis: run these values' cells only, as ``only``
     writes_tables: bool = True  # False for a --report while the experiment runs (``one_writer``)
+    restore: str | None = None  # suite: a published suite whose cells are taken first (``suite_restore``)
 
     def __post_init__(self) -> None:
         if self.retries < 0:
             raise ExperimentError(f"--retries {self.retries}: must be >= 0")
-        if self.reuse and self.report_only:
-            raise ExperimentError("--reuse takes cells into a run; --report runs nothing: give one of them")
+        for flag, given in (("--reuse", self.reuse), ("--restore", self.restore)):
+            if given and self.report_only:
+                raise ExperimentError(f"{flag} takes cells into a run; --report runs nothing: give one")
         if self.address and self.executor != "ray":
             raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
 

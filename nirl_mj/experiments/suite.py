@@ -118,6 +118,10 @@ def run_suite(
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
     out = open_output(out, experiment)
+    if execution.restore:
+        from nirl_mj.experiments.suite_restore import restore_suite
+
+        restore_suite(execution.restore, experiment, out, execution.only, log)
     workers = execution.workers or default_workers()
     if experiment.axes[0].trains:
         cells = training_cells(experiment, out, execution, workers, log)
