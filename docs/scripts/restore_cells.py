@@ -2,6 +2,7 @@
 directory lost with its machine is resumed instead of recomputed.
 
     python docs/scripts/restore_cells.py TASK OUT SOURCE [--runs A-B] [--rename NEW=OLD ...]
+        [--skip NAMES]
     (SOURCE: a published results folder such as docs/results/table1_extended, which holds the
     experiment's experiment.json and results.json)
 
@@ -41,6 +42,8 @@ def main() -> None:
     parser.add_argument("--runs", type=run_range, help="A-B: only these runs (default: every run)")
     parser.add_argument("--rename", action="append", default=[], metavar="NEW=OLD",
                         help="take NEW's cells from SOURCE's method OLD (same learner settings)")  # fmt: skip
+    parser.add_argument("--skip", default="", metavar="NAMES",
+                        help="comma-separated methods to compute again (not taken)")  # fmt: skip
     args = parser.parse_args()
     bad = [pair for pair in args.rename if "=" not in pair]
     if bad:
@@ -48,7 +51,11 @@ def main() -> None:
     rename = dict(pair.split("=", 1) for pair in args.rename)
     try:
         experiment = load_experiment(args.task, kind="compare")
+        skip = {n.strip() for n in args.skip.split(",") if n.strip()}
+        if unknown := sorted(skip - {m.name for m in experiment.methods}):
+            raise ExperimentError(f"--skip {', '.join(unknown)}: not a method of {experiment.name}")
         out, jobs = prepare(experiment, args.out, Execution(), print)
+        jobs = {key: job for key, job in jobs.items() if key[0] not in skip}
         restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
     except ExperimentError as exc:
         parser.exit(2, f"restore_cells: {exc}\n")
