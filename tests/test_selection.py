@@ -57,4 +57,7 @@ def test_the_validation_re_check_keeps_the_latest_of_tied_candidates(monkeypatch
                               loop=SimpleNamespace(selection="validation", final_candidates=2))  # fmt: skip
     chosen = training.select(learner, rollouts=None, second_round=[1, 2])
     assert sorted(chosen["candidates"]) == ["2", "3"] and chosen["iteration"] == 3
-    assert chosen["first_round_best"] == 3
+    assert chosen["first_round_best"] == 3 and chosen["ties"] == "latest"
+    # a NaN score (no demonstrated pair scored) is never a candidate before a number
+    learner.scores, learner.selected = [0.3, NAN, 0.8, NAN], 2
+    assert sorted(training.select(learner, rollouts=None, second_round=[1])["candidates"]) == ["0", "2"]

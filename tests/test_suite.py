@@ -376,13 +376,13 @@ def test_restore_refuses_another_experiment_and_skips_methods_computed_otherwise
         "another experiment than training's (it differs in: tests); nothing restored"
         in capsys.readouterr().err
     )
-    assert not (other / "cells").exists()
-    learners = {**identity["learners"], "NIRL": {**identity["learners"]["NIRL"], "epochs": 1}}
+    assert not other.exists()  # refused before OUT is made
+    learners = {**identity["learners"], "NIRL": {**identity["learners"]["NIRL"], "gamma": 0.5}}
     (published / "training.experiment.json").write_text(json.dumps({**identity, "learners": learners}))
     assert main(args(path, other, "--restore", str(published), "--only", "NIRL,rule")) == 0
     err = capsys.readouterr().err
-    assert "restore: not taken, another definition or learner settings in" in err and ": NIRL" in err
-    assert "restore: 2 finished cells taken" in err  # the rule's; NIRL's computed here instead
+    assert "restore: NIRL not taken: training.experiment.json computed it with other learner settings" in err
+    assert "restore: 2 finished cells taken" in err and "(rule 2)" in err  # NIRL's computed here instead
 
 
 def test_a_transfer_suite_is_restored_with_every_point_of_a_cell(tmp_path):

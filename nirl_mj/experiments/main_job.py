@@ -285,7 +285,7 @@ def report_rows(results: dict, paths: dict) -> dict:
     return rows
 
 
-_BEST = "the iteration whose network predicts the demonstrated actions best in {} (the latest on a tie)"
+_BEST = "the iteration whose network predicts the demonstrated actions best in {}"
 SELECTION_TEXT = {
     "demo_balanced": _BEST.format("balanced accuracy"),
     "demo_accuracy": _BEST.format("accuracy"),
@@ -354,6 +354,9 @@ def _terms(experiment: Experiment, record: dict, rows: dict) -> str:
         else "its mean over the iteration's minibatch gradient steps"
     )
     rule = SELECTION_TEXT.get(record["selection"]["rule"], record["selection"]["rule"])
+    if record["selection"]["rule"].startswith("demo_"):  # runs before 6c30c7d kept the first of equals
+        latest = record["selection"].get("ties") == "latest"
+        rule += f" (the {'latest' if latest else 'earliest'} on a tie)"
     matching = config.get("matching", "occupancy")
     alternatives = MATCHINGS.get(matching, matching)
     loss = f"{config['margin_loss']:g} " + (

@@ -200,6 +200,9 @@ def prepare(
     and returns OUT (absolute) with every (method, run) job."""
     from nirl_mj.experiments.executors import default_workers
 
+    if execution.restore:
+        raise ExperimentError("--restore takes a published suite's cells: suites only (a comparison's: "
+                              "docs/scripts/restore_cells.py)")  # fmt: skip
     execution.check_output(out)
     out = open_output(out, experiment)
     if not execution.report_only:  # a report may run beside the experiment: then nothing is left over

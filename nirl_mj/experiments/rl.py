@@ -380,7 +380,8 @@ def train_rl(
             over = {"validation_success": VALIDATION_ARENAS, "demo_balanced": len(trajectories)}
             entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
             record["scores"] = [*record.get("scores", []), entry]
-            if best is None or (score >= best["score"] and steps_now > best["steps"]):
+            unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
+            if best is None or unscored or (score >= best["score"] and steps_now > best["steps"]):
                 # a file per selected checkpoint, named in the record: a kill between the two writes
                 # leaves the record naming a file that holds what it says
                 name = SELECTED_MODEL_PATTERN.format(steps=steps_now)

@@ -117,11 +117,13 @@ def run_suite(
     if execution.reuse:
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
+    if execution.restore:  # checked and read before OUT is made
+        from nirl_mj.experiments.suite_restore import published_suite, restore_suite
+
+        published = published_suite(execution.restore, experiment, execution.only, log)
     out = open_output(out, experiment)
     if execution.restore:
-        from nirl_mj.experiments.suite_restore import restore_suite
-
-        restore_suite(execution.restore, experiment, out, execution.only, log)
+        restore_suite(*published, out, log)
     workers = execution.workers or default_workers()
     if experiment.axes[0].trains:
         cells = training_cells(experiment, out, execution, workers, log)

@@ -21,6 +21,7 @@ caller names the methods whose code is unchanged.
 from __future__ import annotations
 
 import json
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -49,18 +50,22 @@ def published_files(source: Path, name: str) -> tuple[Path, Path]:
                           f"{name}.experiment.json, or suite.csv and {EXPERIMENT_FILE})")  # fmt: skip
 
 
-def restorable_methods(saved: dict, experiment: Experiment, source: Path) -> set[str]:
-    """The methods of ``experiment`` whose cells ``saved`` (a published identity) computed alike; a
-    published suite of another experiment (task, seed, tests, axes, demonstrations) is an error."""
-    was, now = unspelled_identity(saved), unspelled_identity(experiment.identity())
-    differ = sorted(k for k in now if k not in ("methods", "learners") and was.get(k) != now.get(k))
-    if differ:
+def restorable_methods(saved: dict, experiment: Experiment, source: Path) -> dict[str, str]:
+    """Whether each method of ``experiment`` was computed alike in ``saved`` (a published identity):
+    "" if so, else why not. A published suite of another experiment (task, seed, tests, axes,
+    demonstrations: any key but the methods and learners, on either side) is an error."""
+    from nirl_mj.experiments.reuse import method_sources, saved_form
+
+    was, now = unspelled_identity(saved), unspelled_identity(saved_form(experiment))
+    keys = (set(was) | set(now)) - {"methods", "learners"}
+    if differ := sorted(k for k in keys if was.get(k) != now.get(k)):
         raise ExperimentError(f"--restore {source}: another experiment than {experiment.name}'s (it differs "
                               f"in: {', '.join(differ)}); nothing restored")  # fmt: skip
-    old = {m["name"]: m for m in was.get("methods", []) if isinstance(m, dict)}
-    before, after = was.get("learners", {}), now.get("learners", {})
-    return {m["name"] for m in now["methods"]
-            if old.get(m["name"]) == m and before.get(m["name"]) == after.get(m["name"])}  # fmt: skip
+    sources, trained = method_sources(saved, experiment), now.get("learners", {})
+    why = "other learner settings (the loop's or its step's)", "another definition, or none"
+    return {
+        m.name: "" if m.name in sources[m.name] else why[m.name not in trained] for m in experiment.methods
+    }
 
 
 def cell_metrics(row: dict) -> dict:
@@ -107,15 +112,12 @@ def published_cells(experiment: Experiment, rows: list[dict], methods: set[str])
     return cells
 
 
-def restore_suite(
-    source: str | Path,
-    experiment: Experiment,
-    out: Path,
-    only: tuple[str, ...] = (),
-    log: Callable[[str], None] = print,
-) -> list[str]:
-    """Writes into ``out``/cells the published cells of ``experiment`` found in ``source`` (of the
-    methods in ``only``; all if empty) that ``out`` has not finished; returns their ids."""
+def published_suite(
+    source: str | Path, experiment: Experiment, only: tuple[str, ...] = (), log: Callable[[str], None] = print
+) -> tuple[Path, dict[str, dict]]:
+    """The published CSV of ``experiment`` in ``source`` and its cells of the methods in ``only`` (all
+    if empty) that were computed alike, by cell id; checked before anything is written. Every method
+    left out, and why, is logged."""
     source = Path(source).resolve()
     csv, identity = published_files(source, experiment.name)
     try:
@@ -125,19 +127,36 @@ def restore_suite(
     if not isinstance(saved, dict):
         raise ExperimentError(f"--restore {identity}: not an experiment's identity (a JSON object)")
     try:
-        rows = tidy.read(csv)
+        rows = [r for r in tidy.read(csv) if r["suite"] == experiment.name]
     except tidy.TidyError as exc:
         raise ExperimentError(f"--restore {exc}") from None
-    wanted = set(only) or {m.name for m in experiment.methods}
-    same = restorable_methods(saved, experiment, source)
-    if other := sorted(wanted - same):
-        log(f"restore: not taken, another definition or learner settings in {identity}: {', '.join(other)}")
+    if not rows:
+        raise ExperimentError(f"--restore {csv}: no row of suite {experiment.name}")
+    wanted = [m.name for m in experiment.methods if not only or m.name in only]
+    why = restorable_methods(saved, experiment, source)
+    for name in wanted:
+        if why[name]:
+            log(f"restore: {name} not taken: {identity.name} computed it with {why[name]}")
+    cells = published_cells(experiment, rows, {n for n in wanted if not why[n]})
+    if missing := [n for n in wanted if not why[n] and not any(c["method"] == n for c in cells.values())]:
+        log(f"restore: {csv.name} holds no finished cell of {', '.join(missing)}")
+    return csv, cells
+
+
+def restore_suite(
+    csv: Path, cells: dict[str, dict], out: Path, log: Callable[[str], None] = print
+) -> list[str]:
+    """Writes ``cells`` (:func:`published_suite`) that ``out`` has not finished into ``out``/cells;
+    returns their ids."""
     store = CellStore(out / "cells", check=cell_problem)
-    cells = published_cells(experiment, rows, wanted & same)
     taken = [cid for cid in cells if store.load(cid) is None]
     store.directory.mkdir(parents=True, exist_ok=True)
     for cid in taken:
-        record = {"id": cid, "result": cells[cid], "restored_from": str(csv)}
-        write_text(store.path(cid), json.dumps(record, indent=1))
-    log(f"restore: {len(taken)} finished cells taken from {csv}")
+        write_text(
+            store.path(cid),
+            json.dumps({"id": cid, "result": cells[cid], "restored_from": str(csv)}, indent=1),
+        )
+    counts = Counter(cells[cid]["method"] for cid in taken)
+    each = ", ".join(f"{name} {n}" for name, n in counts.items())
+    log(f"restore: {len(taken)} finished cells taken from {csv}" + (f" ({each})" if each else ""))
     return taken

@@ -294,6 +294,11 @@ def planned_seeds(config: LearnerConfig, seed: int) -> set[int]:
     return {*validation_seeds(config, seed), *train}
 
 
+TIES = "latest"
+"""What a run's selection record says of ties (``nirl_mj.learn.selection``); runs before 6c30c7d,
+which kept the first of equal scores, have no ``ties`` key."""
+
+
 def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dict:
     """The kept policy to report, by the configured rule, with how it was chosen.
 
@@ -306,8 +311,10 @@ def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dic
     loop = learner.loop
     first = learner.selected
     if not second_round or not learner.kept:
-        return {"rule": loop.selection, "iteration": first}
-    order = sorted(range(len(learner.scores)), key=lambda i: (-learner.scores[i], -i))
+        return {"rule": loop.selection, "iteration": first, "ties": TIES}
+    # best first, the latest first among equals; NaN (no score) last
+    score = [-np.inf if np.isnan(x) else x for x in learner.scores]
+    order = sorted(range(len(score)), key=lambda i: (-score[i], -i))
     candidates = sorted(order[: loop.final_candidates])
     combined = {}
     for i in candidates:
@@ -318,6 +325,7 @@ def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dic
     return {
         "rule": f"{loop.selection}, best {loop.final_candidates} re-validated",
         "iteration": chosen,
+        "ties": TIES,
         "first_round_best": first,
         "candidates": {str(i): {"first": learner.scores[i], "both": combined[i]} for i in candidates},
     }
