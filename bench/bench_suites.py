@@ -23,7 +23,7 @@ import statistics
 from pathlib import Path
 
 from nirl_mj.experiments.definition import Experiment, load_experiment
-from nirl_mj.experiments.suite import reads_demonstrations
+from nirl_mj.experiments.suite_cells import reads_demonstrations
 
 try:
     from report import markdown_table, write_section

@@ -28,12 +28,10 @@ import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.experiments import tidy
-from nirl_mj.experiments.compare import cell_id
-from nirl_mj.experiments.definition import Axis, Experiment, ExperimentError, MethodSpec, value_name
+from nirl_mj.experiments.definition import Axis, Experiment, ExperimentError, value_name
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import (
     Execution,
@@ -49,39 +47,18 @@ from nirl_mj.experiments.protocol import (
     run_jobs,
 )
 from nirl_mj.experiments.stats import paired, summarise_runs
+from nirl_mj.experiments.suite_cells import (
+    ANY,
+    point_key,
+    reads_demonstrations,
+    test_cell_id,
+    training_cell_id,
+)
+from nirl_mj.experiments.suite_restore import published_suite, restore_suite
 from nirl_mj.sim.spec import TaskSpec
 
 CSV_COLUMNS = tidy.COLUMNS
 """The tidy CSV's columns (``nirl_mj.experiments.tidy``)."""
-
-ANY = "any"  # the value of a cell that does not depend on a training axis
-
-
-def reads_demonstrations(method: MethodSpec, axis: Axis) -> bool:
-    """Whether ``method``'s result depends on a training axis's value: it learns from the
-    demonstrations, queries the demonstrator (DAgger), or is the demonstrator (``expert``, on the
-    demonstrator axis)."""
-    from nirl_mj.experiments.rl import ADVERSARIAL
-
-    if method.kind in ("irl", "bc", "dagger"):
-        return True
-    if method.kind == "rl":
-        return method.algo in ADVERSARIAL
-    if method.kind == "plugin":
-        return "demonstrations" in method.declared_reads
-    return method.kind == "expert" and axis.name == "demonstrator"
-
-
-def training_cell_id(axis: str, value: str, method: str, run: int) -> str:
-    # "." appears in no method name (definition._NAME), so the id names one (value, method) only
-    return f"{axis}-{value}.{method}-run{run:03d}"
-
-
-test_cell_id = cell_id  # a test axis's cell: one per (method, run), as a comparison's
-
-
-def point_key(axis: str, value: Any) -> str:
-    return f"{axis}={value_name(value)}"
 
 
 def compare_point(job: RunJob, test_task: TaskSpec) -> dict:
@@ -118,8 +95,6 @@ def run_suite(
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
     if execution.restore:  # checked and read before OUT is made
-        from nirl_mj.experiments.suite_restore import published_suite, restore_suite
-
         published = published_suite(execution.restore, experiment, execution.only, log)
     out = open_output(out, experiment)
     if execution.restore:

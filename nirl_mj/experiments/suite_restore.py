@@ -30,7 +30,7 @@ from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec, value_name
 from nirl_mj.experiments.executors import CellStore
 from nirl_mj.experiments.protocol import EXPERIMENT_FILE, cell_problem, run_seed, unspelled_identity
-from nirl_mj.experiments.suite import (
+from nirl_mj.experiments.suite_cells import (
     ANY,
     point_key,
     reads_demonstrations,
