@@ -219,3 +219,12 @@ def test_iterate_study_picks_the_first_and_the_last_of_the_best_scores():
     assert picks(np.array([0.2, 0.7, 0.5])) == {"first_best": 1, "last_best": 1}
     with pytest.raises(SystemExit, match="not a training run of the IRL loop"):
         script["study"](ROOT / "no-such-run", 1, 10)
+
+
+def test_early_stop_ties_names_the_first_and_latest_best_epoch_of_each_tied_fit():
+    """docs/scripts/early_stop_ties.py on hand-written scores: a fit is listed only when its best
+    score was reached at more than one epoch, with the first and the latest of them (from 1)."""
+    tied_fits = runpy.run_path(str(ROOT / "docs" / "scripts" / "early_stop_ties.py"))["tied_fits"]
+    fits = [[0.5, 0.7, 0.7, 0.6], [0.1, 0.9], [0.3, 0.3, 0.3], [0.2, 0.8, 0.4, 0.8]]
+    assert tied_fits(fits) == [(0, 2, 3), (2, 1, 3), (3, 2, 4)]
+    assert tied_fits([]) == []
