@@ -481,6 +481,8 @@ steps = 1024
 steps = 1024
 [quick.method.PPO-reward]
 steps = 1024
+[quick.method.DQN-reward]
+steps = 1024
 [paper.AL]
 avg = 66
 best = 82
