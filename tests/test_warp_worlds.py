@@ -29,12 +29,14 @@ from nirl_mj.sim.task import Outcome, make_env  # noqa: E402
 from nirl_mj.sim.warp_worlds import WarpWorlds  # noqa: E402
 
 SEEDS = [1000, 1001, 1002, 1003]
-# The default task on a 40 m x 40 m floor with 8 obstacles (the paper's density of 20 in 100 m x
-# 100 m, doubled): episodes of about 40 decisions instead of 115, since Warp's CPU device is slow.
-# The default task itself is measured by bench/bench_backend.py (docs/PERFORMANCE.md).
+# The default task on a 24 m x 24 m floor with 4 obstacles (3.5 times the paper's density of 20 in
+# 100 m x 100 m): episodes of 20 to 60 decisions instead of 115, since Warp's CPU device is slow (about
+# a second a decision for 4 worlds on 2 cores). On SEEDS the rule arrives, times out (discrete, planar)
+# and collides (continuous), so every outcome is compared. The default task itself is measured by
+# bench/bench_backend.py (docs/PERFORMANCE.md).
 SMALL = replace(
-    load_task("navigate"), arena={"size": [40.0, 40.0], "start": [5.0, 5.0], "target": [35.0, 35.0],
-                                  "static_obstacles": 8},
+    load_task("navigate"), arena={"size": [24.0, 24.0], "start": [5.0, 5.0], "target": [19.0, 19.0],
+                                  "static_obstacles": 4},
 )  # fmt: skip
 
 
@@ -49,14 +51,12 @@ def worlds() -> WarpWorlds:
     ids=["discrete", "continuous", "planar"],
 )
 def test_same_arenas_and_actions_give_the_cpu_tasks_features_and_outcomes(change):
-    task = replace(SMALL, **change)
-    seeds = SEEDS[:3] if change else SEEDS
-    result = compare_with_cpu(task, seeds, worlds=len(seeds), first=10)
-    assert result["episodes"] == len(seeds)
-    assert result["same_first_features"] == len(seeds), result
-    assert result["same_outcome"] == len(seeds), result["mismatches"]
-    assert result["same_length"] == len(seeds), result
-    assert result["same_last_features"] == len(seeds), result  # an ended world's last state is the task's
+    result = compare_with_cpu(replace(SMALL, **change), SEEDS, worlds=len(SEEDS), first=10)
+    assert result["episodes"] == len(SEEDS)
+    assert result["same_first_features"] == len(SEEDS), result
+    assert result["same_outcome"] == len(SEEDS), result["mismatches"]
+    assert result["same_length"] == len(SEEDS), result
+    assert result["same_last_features"] == len(SEEDS), result  # an ended world's last state is the task's
 
 
 def test_a_world_that_ends_is_reset_alone_into_its_seeds_arena(worlds):
