@@ -1,13 +1,18 @@
 """DAgger: the expert labels the states the learner's policy visits; the data set grows; it learns."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from helpers import OPEN
 
+from nirl_mj.data.dataset import save_dataset
 from nirl_mj.data.trajectory import stack_pairs
 from nirl_mj.experiments.dagger import DaggerConfig, LabellingAgent, train_dagger
+from nirl_mj.experiments.definition import from_dict
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
+from nirl_mj.experiments.kinds import KINDS
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.task import make_env
@@ -57,3 +62,23 @@ def test_a_short_dagger_run_beats_the_uniform_random_policy():
     rng = np.random.default_rng(0)
     random, _ = evaluate(make_env(OPEN), lambda phi: int(rng.integers(6)), tests)
     assert learned["success_rate"] >= 0.75 > random["success_rate"]
+
+
+def test_a_dagger_rows_settings_set_the_experts_budget_and_enter_its_identity_only_when_set(tmp_path):
+    data = {"kind": "compare", "methods": ["DAgger", "D1"],
+            "method": {"D1": {"kind": "dagger", "settings": {"rounds": 1, "episodes": 2}}}}  # fmt: skip
+    experiment = from_dict(data, "e.toml")
+    default, small = experiment.methods
+    assert DaggerConfig.of(default.settings) == DaggerConfig()
+    assert DaggerConfig.of(small.settings) == DaggerConfig(rounds=1, episodes=2)
+    # the built-in row's identity is as it was before settings existed; the other one carries them
+    identities = {m["name"]: m for m in experiment.identity()["methods"]}
+    assert "settings" not in identities["DAgger"]
+    assert identities["D1"]["settings"] == {"rounds": 1, "episodes": 2}
+
+    # the cell trains with that budget: 1 round of 2 learner episodes, on the first 2 training arenas
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(OPEN, ExpertConfig("rule"), episodes=1, seed=0))
+    job = SimpleNamespace(task=OPEN, demos_path=demos, seed=3, expert="rule", method=small)
+    trained = KINDS["dagger"](job, True)
+    assert trained.seen == frozenset(domain_seeds("train", 3, 2))

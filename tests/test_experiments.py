@@ -184,6 +184,14 @@ def test_every_shipped_experiment_file_loads_full_and_quick(path):
          'method.Mine: method and config apply to kind = "irl" only'),
         ({"methods": ["Mine"], "method": {"Mine": {"kind": "rule", "variant": "paper"}}},
          'method.Mine: variant applies to kind = "irl", "bc" and "dagger" only'),
+        ({"methods": ["D"], "method": {"D": {"kind": "dagger", "settings": {"round": 2}}}},
+         "method.D.settings: unknown DAgger setting(s) round; accepted: rounds, episodes"),
+        ({"methods": ["D"], "method": {"D": {"kind": "dagger", "settings": {"episodes": 2.5}}}},
+         "method.D.settings: DAgger's episodes must be a whole number, got 2.5"),
+        ({"methods": ["D"], "method": {"D": {"kind": "dagger", "settings": {"episodes": 0}}}},
+         "method.D.settings: DAgger needs rounds >= 0 and episodes >= 1, got 8, 0"),
+        ({"methods": ["D"], "method": {"D": {"kind": "dagger", "steps": 5}}},
+         "method.D: DAgger takes settings (its rounds and episodes) only"),
         ({"methods": ["NIRL"], "test_domain": "dev"}, "test_domain = 'dev': accepted: test, final"),
         ({"methods": ["NIRL"], "demos": {"per_run": 1}}, "demos.per_run = 1: expected true or false"),
         ({"method": {"Mine": {"kind": "bc"}}}, "method: Mine defined but not in methods"),
@@ -483,6 +491,8 @@ steps = 1024
 steps = 1024
 [quick.method.DQN-reward]
 steps = 1024
+[quick.method.DAgger]
+settings = {{ rounds = 1, episodes = 2 }}
 [paper.AL]
 avg = 66
 best = 82

@@ -19,8 +19,9 @@ information. Rollouts run on the training drive (planar, as NIRL's) and arenas o
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,24 @@ class DaggerConfig:
             raise ValueError(
                 f"DAgger needs rounds >= 0 and episodes >= 1, got {self.rounds}, {self.episodes}"
             )
+
+    @classmethod
+    def of(cls, settings: Mapping[str, Any]) -> DaggerConfig:
+        """The config a method's ``settings`` table asks for (:data:`SETTINGS`, whole numbers; the
+        others keep their defaults): the interactive expert's budget, ``rounds x episodes`` learner
+        episodes labelled."""
+        unknown = sorted(set(settings) - set(SETTINGS))
+        if unknown:
+            accepted = ", ".join(SETTINGS)
+            raise ValueError(f"unknown DAgger setting(s) {', '.join(unknown)}; accepted: {accepted}")
+        for key, value in settings.items():
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise ValueError(f"DAgger's {key} must be a whole number, got {value!r}")
+        return cls(**settings)
+
+
+SETTINGS = ("rounds", "episodes")
+"""The keys of a DAgger method's ``settings`` (``method.NAME.settings`` in an experiment file)."""
 
 
 class LabellingAgent:

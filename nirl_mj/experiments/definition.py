@@ -65,7 +65,7 @@ METHOD_KEYS = (
     "train_drive",
     "plugin",
 )
-RL_KEYS = ("algo", "steps", "selection", "envs", "settings", "train_drive")  # kind = "rl" only
+RL_KEYS = ("algo", "steps", "selection", "envs", "settings", "train_drive")  # kind = "rl" (dagger: settings)
 PAPER_KEYS = ("avg", "best", "worst")
 STRIP_KEYS = ("method", "snapshots", "camera", "width", "height")
 AXIS_KEYS = ("name", "values", "test_task")
@@ -85,7 +85,8 @@ class MethodSpec:
     ``steps`` (decisions of training), ``selection`` (``experiments.rl.SELECTIONS``), ``envs``
     (environments sharing each rollout), ``settings`` (PPO's, ``experiments.rl.TUNABLE``) and
     ``train_drive`` (the training episodes' drive, ``sim.spec.DRIVES``; "" the task's) for
-    ``kind = "rl"`` only."""
+    ``kind = "rl"`` only; ``settings`` also for ``kind = "dagger"`` (its rounds and learner episodes
+    per round: ``experiments.dagger.DaggerConfig.of``) and ``"plugin"``."""
 
     name: str
     kind: str
@@ -96,7 +97,7 @@ class MethodSpec:
     steps: int = 50_000
     selection: str = LEGACY["selection"]
     envs: int = LEGACY["envs"]
-    settings: dict = field(default_factory=dict)  # rl: changes to PPO's settings (experiments.rl.TUNABLE)
+    settings: dict = field(default_factory=dict)  # rl: PPO's (experiments.rl.TUNABLE); dagger: its budget
     plugin: str = ""  # kind "plugin": the entry point of group nirl_mj.methods (experiments.plugins)
     declared_reads: tuple[str, ...] = ()  # kind "plugin": what the method declares it reads
     train_drive: str = ""  # rl: the training episodes' drive ("": the task's; tests drive the task's)
@@ -542,7 +543,9 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             raise ExperimentError(f'{where}: method and config apply to kind = "irl" only')
         if kind not in ("irl", "bc", "dagger") and "variant" in table:
             raise ExperimentError(f'{where}: variant applies to kind = "irl", "bc" and "dagger" only')
-        if kind not in ("rl", "plugin") and any(k in table for k in RL_KEYS):
+        if kind == "dagger" and any(k in table for k in RL_KEYS if k != "settings"):
+            raise ExperimentError(f"{where}: DAgger takes settings (its rounds and episodes) only")
+        if kind not in ("rl", "plugin", "dagger") and any(k in table for k in RL_KEYS):
             raise ExperimentError(f'{where}: {", ".join(RL_KEYS)} apply to kind = "rl" only')
         if kind == "plugin" and any(k in table for k in RL_KEYS if k not in ("steps", "settings")):
             raise ExperimentError(f"{where}: a plugin takes steps (its budget) and settings only")
@@ -569,6 +572,13 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             run_config(method.algo, method.selection, method.envs, method.settings, method.train_drive)
         except ValueError as exc:
             raise ExperimentError(f"{where}: {exc}") from None
+    if method.kind == "dagger":
+        from nirl_mj.experiments.dagger import DaggerConfig
+
+        try:
+            DaggerConfig.of(method.settings)
+        except ValueError as exc:
+            raise ExperimentError(f"{where}.settings: {exc}") from None
     if method.kind == "plugin":
         from nirl_mj.experiments.plugins import load_method
 
@@ -601,8 +611,8 @@ computed after. The paper variant is the fit of before, and its identity is as i
 
 def _method_identity(method: MethodSpec) -> dict:
     """A method as JSON for the experiment's identity; ``algo`` and ``steps`` only for kind "rl", and
-    ``selection`` and ``envs`` only where they are not the legacy ones, so that the identity of an
-    experiment written before they existed is unchanged."""
+    ``selection`` and ``envs`` only where they are not the legacy ones, ``settings`` (rl, dagger) only
+    where set, so that the identity of an experiment written before they existed is unchanged."""
     data = dataclasses.asdict(method)
     if method.kind == "plugin":
         from nirl_mj.experiments.plugins import version_of
@@ -613,7 +623,8 @@ def _method_identity(method: MethodSpec) -> dict:
     legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
     for key in RL_KEYS:
         unset = key in ("settings", "train_drive") and not data[key]
-        if method.kind != "rl" or (legacy and key in LEGACY) or unset:
+        own = method.kind == "rl" or (method.kind == "dagger" and key == "settings")
+        if not own or (legacy and key in LEGACY) or unset:
             del data[key]
     if method.kind in ("bc", "dagger") and method.variant == "default":
         data["clone"] = CLONE_FIT

@@ -73,13 +73,14 @@ def _rl(job, train: bool) -> Trained:
 def _dagger(job, train: bool) -> Trained:
     from nirl_mj.data.dataset import load_dataset
     from nirl_mj.data.trajectory import require_discrete
-    from nirl_mj.experiments.dagger import train_dagger
+    from nirl_mj.experiments.dagger import DaggerConfig, train_dagger
     from nirl_mj.learn.bc import CloneSettings
 
     settings = CloneSettings.of(job.method.variant)
     demos = load_dataset(job.demos_path)
     require_discrete(demos, str(job.demos_path))
-    policy, arenas = train_dagger(job.task, demos, job.seed, job.expert, settings=settings)
+    config = DaggerConfig.of(job.method.settings)
+    policy, arenas = train_dagger(job.task, demos, job.seed, job.expert, config, settings=settings)
     return Trained(policy, frozenset(arenas))
 
 
