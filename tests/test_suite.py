@@ -402,3 +402,21 @@ def test_a_transfer_suite_is_restored_with_every_point_of_a_cell(tmp_path):
     assert "restored_from" not in stored and "restored_from" in json.loads(
         (lost / "cells" / "BC-run000.json").read_text()
     )
+
+
+def test_a_point_with_fewer_finished_runs_than_the_experiment_says_how_many():
+    """A partial report (cells left to another --only, or not computed yet) marks each such point."""
+    from nirl_mj.experiments.definition import value_name
+    from nirl_mj.experiments.suite import _paired_table, markdown_table
+
+    experiment = load_experiment(ROOT / "tasks" / "suites" / "quality.toml")  # 5 runs
+    axis = experiment.axes[0]
+    points = [{"axis": axis.name, "value": value_name(v), "method": m.name, "runs": 0}
+              for v in axis.values for m in experiment.methods]  # fmt: skip
+    first, partial = points[0], points[1]  # NIRL and NIRL-MAP with the sensor expert
+    first.update(runs=5, avg=0.9, ci=[0.8, 1.0])
+    partial.update(runs=2, avg=0.5, ci=[0.0, 1.0], paired={"mean": 0.4, "ci": [0.1, 0.7], "runs": 2})
+    summary = {"points": points, "first": "NIRL"}
+    table = markdown_table(summary, experiment)
+    assert "| NIRL | 90.0 [80, 100] | - |" in table and "| NIRL-MAP | 50.0 [0, 100] (n = 2) | - |" in table
+    assert "| NIRL-MAP | +40.0 [+10, +70] (n = 2) | - |" in _paired_table(summary, experiment, axis)

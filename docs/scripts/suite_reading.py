@@ -51,13 +51,19 @@ def interval(a: dict[int, float], b: dict[int, float]) -> str:
     return f"{100 * d['mean']:+.1f} [{100 * d['ci'][0]:+.1f}, {100 * d['ci'][1]:+.1f}]{n}"
 
 
+MIN_WHOLE = 0.1
+"""The least success (a fraction) that a share is taken of."""
+
+
 def share(part: dict[int, float], whole: dict[int, float]) -> str:
     """The mean of ``part`` as a share of the mean of ``whole``, over the runs both have (n in brackets
-    when not 5)."""
+    when not 5); none of a ``whole`` under :data:`MIN_WHOLE` (a share of almost nothing says nothing)."""
     runs = sorted(set(part) & set(whole))
     total = sum(whole[r] for r in runs)
     if not runs or total <= 0:
         return "-"
+    if total / len(runs) < MIN_WHOLE:
+        return f"- ({100 * sum(part[r] for r in runs) / len(runs):.1f} % of {100 * total / len(runs):.1f} %)"
     n = f" (n = {len(runs)})" if len(runs) != FULL else ""
     return f"{100 * sum(part[r] for r in runs) / total:.0f} %{n}"
 
@@ -88,7 +94,8 @@ def demos_reading(rows: list[dict]) -> list[str]:
 def quality_reading(rows: list[dict]) -> list[str]:
     flawed = [v for v in values(rows, "demonstrator") if v != "sensor"]
     out = ["### Demonstrator", "", "Success with each demonstrator as a share of the success with the clean "
-           "sensor expert (the demonstrator's own success in the `expert` row):", "",
+           "sensor expert (the demonstrator's own success in the `expert` row; where the clean success is "
+           "under 10 %, the two successes instead):", "",
            "| method | " + " | ".join(flawed) + " |", "|---|" + "---|" * len(flawed)]  # fmt: skip
     for m in [*learners(rows), "expert"]:
         clean = success(rows, "demonstrator", "sensor", m)

@@ -246,12 +246,17 @@ def json_line(summary: dict) -> str:
                        "failures": [f["id"] for f in summary["failures"]]})  # fmt: skip
 
 
-def _percent(p: dict) -> str:
+def _percent(p: dict, runs: int) -> str:
     if not p.get("runs"):
         return "-"
     ci = p.get("ci") or [None, None]
     band = f" [{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]" if ci[0] is not None else ""
-    return f"{100 * p['avg']:.1f}{band}"
+    return f"{100 * p['avg']:.1f}{band}{_fewer(p['runs'], runs)}"
+
+
+def _fewer(done: int, runs: int) -> str:
+    """`` (n = done)`` where a point has fewer finished runs than the experiment's ``runs``."""
+    return f" (n = {done})" if done < runs else ""
 
 
 def markdown_table(summary: dict, experiment: Experiment) -> str:
@@ -266,7 +271,8 @@ def markdown_table(summary: dict, experiment: Experiment) -> str:
                 for p in summary["points"]
                 if p["axis"] == axis.name and p["method"] == method.name
             }
-            lines.append(f"| {method.name} | " + " | ".join(_percent(found[n]) for n in names) + " |")
+            cells = [_percent(found[n], experiment.runs) for n in names]
+            lines.append(f"| {method.name} | " + " | ".join(cells) + " |")
         parts.append("\n".join(lines))
     return "\n\n".join(parts)
 
@@ -296,6 +302,7 @@ def _paired_table(summary: dict, experiment: Experiment, axis: Axis) -> str:
             d = p.get("paired") or {}
             ci = d.get("ci") or [None, None]
             cells.append(f"{100 * d['mean']:+.1f} [{100 * ci[0]:+.0f}, {100 * ci[1]:+.0f}]"
+                         f"{_fewer(d['runs'], experiment.runs)}"
                          if d.get("runs", 0) > 1 and ci[0] is not None else "-")  # fmt: skip
         lines.append(f"| {method.name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
