@@ -188,7 +188,7 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
         f"quality,demonstrator,{point},{m},{r},10,{v},0,0,0,0\n"
         for point in ("sensor", "sensor-random30") for m, vs in quality.items() for r, v in enumerate(vs)
     ))  # fmt: skip
-    demos = {"NIRL": [0.9, 0.8], "BC": [0.4, 0.6], "AL": [0.5, 0.7], "rule": [1.0, 1.0]}
+    demos = {"NIRL": [0.9, 0.8], "BC": [0.4, 0.6], "AL": [0.5, 0.7], "AIRL": [0.0, 0.05], "rule": [1.0, 1.0]}
     (tmp_path / "demos.csv").write_text(head + "".join(
         f"demos,demonstrations,{point},{m},{r},10,{v},0,0,0,0\n"
         for point in (3, 30) for m, vs in demos.items() for r, v in enumerate(vs)
@@ -205,6 +205,9 @@ def test_suite_reading_pairs_map_on_and_off_and_every_learner_against_the_clone(
     assert "| AL minus BC | +10.0 [+10.0, +10.0] (n = 2) | +10.0 [+10.0, +10.0] (n = 2) | - |" in text
     assert "| NIRL minus AL |" in text  # NIRL against every other learner too
     assert "rule minus BC" not in text and "SCIRL minus BC" not in text  # a reference; no common point
+    # the same success at 3 as at 30; AIRL's 2.5 % at 30 is under the 10 % a share is taken of
+    assert "| NIRL | 85.0 | 3 | +0.0 [+0.0, +0.0] (n = 2) |" in text
+    assert "| AIRL | 2.5 | - (under 10 %) | +0.0 [+0.0, +0.0] (n = 2) |" in text
     assert "(transfer: not computed yet)" in text
 
 

@@ -4,7 +4,8 @@ Answers, from docs/results/suites/{demos,quality,transfer}.csv (or the files giv
 95 % t intervals over the runs (a run's test arenas are the same at every point and for every
 method):
 
-- from how few demonstrations each learner reaches 90 % of its own 30-demonstration success;
+- from how few demonstrations each learner reaches 90 % of its own 30-demonstration success (none
+  where that success is under 10 %);
 - how much of its clean-demonstration success each keeps with each flawed demonstrator;
 - how much of the sensor expert's success each keeps where it was never trained;
 - where the learners differ, paired: each learner but the NIRL-MAP rows against behaviour cloning,
@@ -86,6 +87,8 @@ def demos_reading(rows: list[dict]) -> list[str]:
             continue
         reached = next((v for v in values(rows, "demonstrations")
                         if mean(success(rows, "demonstrations", v, m)) >= 0.9 * mean(full)), "-")  # fmt: skip
+        if mean(full) < MIN_WHOLE:  # 90 % of almost nothing is reached by anything
+            reached = "- (under 10 %)"
         three = success(rows, "demonstrations", "3", m)
         out.append(f"| {m} | {100 * mean(full):.1f} | {reached} | {interval(three, full)} |")
     return out
