@@ -85,10 +85,9 @@ def demos_reading(rows: list[dict]) -> list[str]:
         full = success(rows, "demonstrations", "30", m)
         if not full:
             continue
-        reached = next((v for v in values(rows, "demonstrations")
-                        if mean(success(rows, "demonstrations", v, m)) >= 0.9 * mean(full)), "-")  # fmt: skip
-        if mean(full) < MIN_WHOLE:  # 90 % of almost nothing is reached by anything
-            reached = "- (under 10 %)"
+        enough = [v for v in values(rows, "demonstrations")
+                  if mean(success(rows, "demonstrations", v, m)) >= 0.9 * mean(full)]  # fmt: skip
+        reached = f"- (under {100 * MIN_WHOLE:.0f} %)" if mean(full) < MIN_WHOLE else (enough or ["-"])[0]
         three = success(rows, "demonstrations", "3", m)
         out.append(f"| {m} | {100 * mean(full):.1f} | {reached} | {interval(three, full)} |")
     return out
