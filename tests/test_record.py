@@ -54,6 +54,14 @@ def episode():
     return task, trajectory
 
 
+def test_the_target_is_drawn_with_the_tasks_radius(tmp_path):
+    task = specs.replace(tiny_task(moving=0), arena={"target_radius": 2.0})
+    trajectory = run_episode(make_env(task), PolicyAgent(rule_policy, "rule"), seed=3)
+    chunks = read_rrd(record_run(tmp_path / "run.rrd", [trajectory], [], {}))
+    [chunk] = chunks["/demos/000/arena/start_target"]
+    assert chunk.to_record_batch().column("Points3D:radii").to_pylist() == [[0.5, 2.0]]  # start, target
+
+
 def test_run_recording_matches_the_episode(tmp_path, episode):
     task, trajectory = episode
     theta = np.random.default_rng(0).normal(size=len(reward_feature_names("extended")))

@@ -57,6 +57,18 @@ def test_video_frames_size_motion_and_timing(tmp_path, camera, overlay):
     np.testing.assert_array_equal(result.trajectory.actions, plain.actions)
 
 
+def test_the_follow_camera_looks_straight_down_with_north_up():
+    # as the top view and Rerun's arena show it: image right is east (+x), image up is north (+y)
+    import mujoco
+
+    env = make_env(tiny_task(), seed=0)
+    env.reset()
+    physics = env.physics
+    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
+    axes = physics.data.cam_xmat[physics.model.name2id("robotino/top", "camera")].reshape(3, 3)
+    np.testing.assert_allclose(axes.T, np.eye(3), atol=1e-9)  # rows: right, up, backwards (+z)
+
+
 def test_overlay_draws_text_and_danger_bars():
     frame = np.full((480, 640, 3), 128, np.uint8)
     phi = np.array([0, 1, 2, 3, 5, 6, 7, 3, 1, 0, 0, 0, 0, 0, 0, 0], np.float32)

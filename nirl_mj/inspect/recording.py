@@ -134,9 +134,11 @@ def _yaw_quaternions(yaw: np.ndarray) -> np.ndarray:
     return np.stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
 
 
-def log_layout(rec: rr.RecordingStream, path: str, layout: Layout, height: float = 1.0) -> None:
-    """Logs an arena as static 3-D geometry under ``path`` (metres); moving obstacles are
-    logged over time by :func:`log_trajectory`."""
+def log_layout(
+    rec: rr.RecordingStream, path: str, layout: Layout, height: float = 1.0, target_radius: float = 1.0
+) -> None:
+    """Logs an arena as static 3-D geometry under ``path`` (metres; the target a disc of
+    ``target_radius``); moving obstacles are logged over time by :func:`log_trajectory`."""
     boxes = [o for o in layout.obstacles if o.shape == "box"]
     cylinders = [o for o in layout.obstacles if o.shape == "cylinder"]
     if boxes:
@@ -175,7 +177,7 @@ def log_layout(rec: rr.RecordingStream, path: str, layout: Layout, height: float
         rr.Points3D(
             [(*layout.start, 0.0), (*layout.target, 0.0)],
             colors=[_START, _TARGET],
-            radii=[0.5, 1.0],
+            radii=[0.5, target_radius],
             labels=["start", "target"],
         ),
         static=True,
@@ -358,11 +360,12 @@ def log_episode(
     of a group's tiled arenas do not overlap). Returns the layout."""
     layout = layout_of(trajectory)
     height = float(trajectory.task["arena"].get("obstacle_height", 1.0))
+    target_radius = float(trajectory.task["arena"].get("target_radius", 1.0))
     name = f"{path.rsplit('/', 1)[-1]} {OUTCOME_WORDS[trajectory.outcome]}"
     label = rr.Points3D([(layout.size[0] / 2, layout.size[1] + 4.0, 0.0)], radii=[0.0], labels=[name],
                         colors=[_PATH[trajectory.outcome]], show_labels=True)  # fmt: skip
     rec.log(f"{path}/label", label, static=True)
-    log_layout(rec, f"{path}/arena", layout, height)
+    log_layout(rec, f"{path}/arena", layout, height, target_radius)
     log_trajectory(rec, path, trajectory, reward, layout)
     return layout
 
