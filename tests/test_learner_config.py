@@ -1,5 +1,6 @@
 """The learner's config: the shared loop's, one per reward step, presets as data, flat on disk."""
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -12,6 +13,7 @@ from nirl_mj.learn.config import (
     LoopConfig,
     MaxMarginConfig,
     RelativeEntropyConfig,
+    _owners,
     checked_changes,
 )
 
@@ -32,6 +34,13 @@ def test_a_flat_record_written_before_the_split_loads_and_writes_back_the_same()
 def test_every_setting_has_one_owner_and_the_step_follows_the_method():
     names = [f for cls in (LoopConfig, *STEP_CONFIGS.values()) for f in cls.__dataclass_fields__]
     assert len(names) == len(set(names))
+
+    @dataclasses.dataclass(frozen=True)
+    class Clash:  # a new step's config reusing NIRL's field name: refused, both classes named
+        mmp_steps: int = 1
+
+    with pytest.raises(TypeError, match="'mmp_steps' is a field of both MaxMarginConfig and Clash"):
+        _owners({**STEP_CONFIGS, "clash": Clash})
     config = LearnerConfig.preset("default", method="re", re_horizon=8, mmp_steps=3)
     assert isinstance(config.step, RelativeEntropyConfig) and config.step.re_horizon == 8
     assert config.steps["nirl"].mmp_steps == 3  # kept for the step that does not run

@@ -18,7 +18,15 @@ from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.features import ACTION_NAMES
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.outcomes import summarise
-from nirl_mj.data.rundir import EVAL_FILE, MODEL_FILE, RUN_FILE, SELECTED_MODEL_FILE, RunDir, RunError
+from nirl_mj.data.rundir import (
+    DISCRIMINATOR_FILE,
+    EVAL_FILE,
+    MODEL_FILE,
+    RUN_FILE,
+    SELECTED_MODEL_FILE,
+    RunDir,
+    RunError,
+)
 from nirl_mj.experiments import compare, suite, sweep
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
@@ -292,7 +300,6 @@ def cmd_rl(args: argparse.Namespace) -> int:
     import gymnasium  # noqa: F401  (the optional extra: missing, it fails here, before any work)
     import stable_baselines3  # noqa: F401
 
-    from nirl_mj.experiments.adversarial import DISCRIMINATOR_FILE
     from nirl_mj.experiments.rl import ADVERSARIAL, train_rl
 
     if (args.algo in ADVERSARIAL) != bool(args.demos):

@@ -38,6 +38,7 @@ RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoi
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
 MODEL_FILE, SELECTED_MODEL_FILE = "model.zip", "selected.zip"
 SELECTED_MODEL_PATTERN = "selected-{steps}.zip"  # an RL run's selected checkpoint, named in its record
+DISCRIMINATOR_FILE = "discriminator.npz"  # GAIL's and AIRL's discriminator (experiments.adversarial)
 POLICIES = ("selected", "last")
 RECORD_KEYS = ("task", "config", "seed", "demos", "demo_seeds", "validation_seeds")
 """What every run record holds from its start."""

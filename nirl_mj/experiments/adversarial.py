@@ -39,7 +39,7 @@ import numpy as np
 import torch
 
 from nirl_mj.data.atomic import write_npz
-from nirl_mj.data.rundir import RunDir, RunError
+from nirl_mj.data.rundir import DISCRIMINATOR_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.data.transitions import Transitions
 from nirl_mj.learn.adversarial import (
@@ -51,7 +51,6 @@ from nirl_mj.learn.adversarial import (
 )
 from nirl_mj.learn.running_norm import RunningNorm
 
-DISCRIMINATOR_FILE = "discriminator.npz"
 ABSORBING = "absorbing"  # the suffix of an algorithm with an absorbing state
 NORMALISED = "norm"  # the suffix of an algorithm whose policy reward is normalised as it runs
 PENALTIES = {"gp": 10.0, "gp1": 1.0, "gp0_1": 0.1}

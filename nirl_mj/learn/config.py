@@ -306,11 +306,16 @@ def without_retired(flat: Mapping[str, Any], where: str) -> dict[str, Any]:
     return {k: v for k, v in flat.items() if k not in RETIRED}
 
 
-def _owners() -> dict[str, type]:
-    """Every flat field name -> the config class that holds it."""
-    owners = {f.name: LoopConfig for f in dataclasses.fields(LoopConfig)}
-    for cls in STEP_CONFIGS.values():
-        owners |= {f.name: cls for f in dataclasses.fields(cls)}
+def _owners(step_configs: Mapping[str, type] | None = None) -> dict[str, type]:
+    """Every flat field name -> the config class that holds it (of :data:`STEP_CONFIGS` unless
+    given); TypeError naming both classes if two hold one name (a flat ``--config`` name must say
+    which field it sets)."""
+    owners: dict[str, type] = {}
+    for cls in (LoopConfig, *(STEP_CONFIGS if step_configs is None else step_configs).values()):
+        for f in dataclasses.fields(cls):
+            if owners.setdefault(f.name, cls) is not cls:
+                raise TypeError(f"learner setting {f.name!r} is a field of both {owners[f.name].__name__} "
+                                f"and {cls.__name__}: flat names must be unique")  # fmt: skip
     return owners
 
 
