@@ -42,7 +42,7 @@ _workers = _number(int, 1, 1024, "a number of processes in 1 .. 1024")
 def _command(sub, name: str, func: Callable, help: str, *common: str, task: str | None = "navigate"):
     """A subcommand with its function and shared options: --task (None when not given: the command
     uses what ``task`` describes as its default; ``task`` None: no task options) with --set;
-    ``common`` from json, quiet, overwrite, rerun=WHAT."""
+    ``common`` from json, quiet, overwrite, rerun=WHAT, backend=WHAT."""
     parser = sub.add_parser(name, help=help)
     parser.set_defaults(func=func)
     if task is not None:
@@ -214,10 +214,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
-    p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's greedy policy on held-out arenas", "json",
+    p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's policy on held-out arenas", "json",
                  "quiet", "overwrite", "backend=the test episodes",
                  "rerun=every test episode (with r_theta and the reward map for --run)",
-                 task="the run's own")  # fmt: skip
+                 task="the run's own; with --policy navigate")  # fmt: skip
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--run", help="run directory")
     who.add_argument("--policy", choices=REFERENCES, help="a reference policy instead of a run")
@@ -230,9 +230,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy "
                  "offscreen: "
-                 "MP4, PNG montages", "overwrite", task="the run's own")
+                 "MP4, PNG montages", "overwrite", task="the run's own; with --policy navigate")
     who = p.add_mutually_exclusive_group(required=True)
-    who.add_argument("--run", help="run directory: its greedy policy on its held-out test arenas")
+    who.add_argument("--run", help="run directory: its policy on its held-out test arenas")
     who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas (as for eval)")
     p.add_argument("--episode", type=int, default=0, help="which test arena (0 = eval's first)")

@@ -1,4 +1,5 @@
-"""The on-disk dataset format (``docs/DATASET.md``): the ONLY module that reads or writes it.
+"""The on-disk dataset format (``docs/DATASET.md``): the ONLY module that knows it (``experiments.reuse``
+compares two files array by array, without reading the format).
 
 One compressed NPZ per dataset, plain numpy arrays, no pickles, so a file reads
 back with ``np.load(path, allow_pickle=False)``. :func:`save_dataset` writes

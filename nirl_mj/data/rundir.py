@@ -9,10 +9,12 @@ A run directory holds:
 - ``checkpoint.npz``: the whole learner state after the last finished iteration;
 - ``policy.npz``: the selected and the last network (``selected/W1``, ``last/W2``, ...);
 - ``reward.json``: the selected reward (``{"kind", "theta": {name: value}}``);
-- ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``).
+- ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``, and ``|backend=warp``
+  for an evaluation on the Warp backend).
 
-A reinforcement-learning reference (``nirl-mj rl``, record ``"kind": "rl"``) holds ``run.json``,
-``model.zip`` (the Stable-Baselines3 model, written at every checkpoint and at the end) and
+A reinforcement-learning run (``nirl-mj rl``, record ``"kind": "rl"``) holds ``run.json``,
+``model.zip`` (the Stable-Baselines3 model, written at every checkpoint and at the end), the
+selected checkpoint ``selected-<decisions>.zip``, GAIL's and AIRL's ``discriminator.npz`` and
 ``eval.json``.
 
 Every write is atomic (``nirl_mj.data.atomic``), so a killed process leaves each file

@@ -145,7 +145,7 @@ def _pct(value: float | None, digits: int = 1) -> str:
 
 
 def markdown_table(summary: dict) -> str:
-    """The results next to the paper's Table I, percent."""
+    """The results next to the paper's Table I: rates in percent, SPL from 0 to 1."""
     lines = [
         "| method | runs | success avg [95 % CI] | best | worst | collision | timeout | SPL "
         "| paper avg / best / worst | reads |",
@@ -307,7 +307,7 @@ def demos_text(experiment: Experiment) -> str:
 
 
 def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dict) -> list[Path]:
-    """table.md, table.csv, table.png and results.json in ``out``."""
+    """table.md, table.csv, rows.csv, table.png and results.json in ``out``."""
     title = f"{experiment.name}: {experiment.runs} runs x {experiment.tests} tests"
     if summary.get("unfinished"):
         done = sorted({str(s["runs"]) for s in summary["methods"].values()}, key=int)

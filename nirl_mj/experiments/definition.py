@@ -104,7 +104,9 @@ class MethodSpec:
 
     @property
     def trains(self) -> bool:
-        """Whether this method has training runs on disk (``OUT/runs/NAME/SEED``)."""
+        """Whether this method is a learner of NIRL's loop (kind ``irl``): learner settings, and a
+        training run (``OUT/runs/NAME/SEED``) that a sweep trains as a cell of its own. An ``rl`` or
+        plugin method keeps a run directory there too, trained inside its test cell."""
         return self.kind == "irl"
 
     @property

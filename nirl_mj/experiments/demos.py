@@ -4,8 +4,8 @@ Episode i of a collection seeded S runs in the arena of ``seeds.episode_seed(S, 
 with a freshly reset expert, so an episode does not depend on which process ran it
 or what ran before it. Each episode is one cell of an
 :class:`~nirl_mj.experiments.executors.Executor` (serial for one worker, local
-processes for more): the same executors, retries and process pool as every
-experiment. A cell writes its trajectory as a one-episode dataset in a scratch
+processes for more): the same executors and process pool as every experiment, without
+retries. A cell writes its trajectory as a one-episode dataset in a scratch
 directory (cell results travel as JSON; a dataset file keeps every array exact).
 """
 

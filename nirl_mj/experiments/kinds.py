@@ -6,7 +6,8 @@ run directory) in; a policy and every arena seed its training drove or read out.
 (:func:`nirl_mj.experiments.protocol.policy_of`) treats every kind alike: it checks the seen arenas
 against the run's test arenas and tests the policy. A method from another package
 (``kind = "plugin"``, ``nirl_mj.experiments.plugins``) is one more entry of :data:`KINDS`.
-``train=False`` loads a finished run and never trains (a sweep's tests).
+``train=False`` (a sweep's tests) loads an IRL run, which must have finished, and an RL run's saved
+model as it is; the kinds that keep no run to load (BC, DAgger, a plugin) train as with ``True``.
 """
 
 from __future__ import annotations

@@ -4,8 +4,9 @@
 like the files under ``tasks/``: one set of demonstrations (default: 30 by the
 sensor-based expert), one run (seed ``seed``) of six methods, each tested on the
 same held-out arenas. It runs through the shared protocol
-(``nirl_mj.experiments.protocol``) and executors, so it resumes, retries and
-parallelises like ``compare``, with the same seeds. The methods:
+(``nirl_mj.experiments.protocol``) and executors, so it resumes and
+parallelises like ``compare``, with the same seeds (without retries: a failed cell is reported at
+once). The methods:
 
 - ``NIRL``: the learner (``variant``: a preset of ``nirl_mj.learn.config``);
 - ``forward``, ``rule``, ``BC``: always forward, the rule on phi(s), behaviour cloning;

@@ -16,10 +16,10 @@ or an instance) has, in plain Python, NumPy and Gymnasium types (docs/EXTENDING.
   observation="features")`` gives it);
 - ``train(demonstrations, make_env, budget, seed, workdir) -> policy``: ``demonstrations`` a dict of
   arrays (``observations`` (N, 16) float32, ``actions`` (N,) int64, ``next_observations`` (N, 16),
-  ``episode`` (N,) int64, ``terminals`` (N,) bool: the episode ended there by arrival or
-  collision); ``make_env()`` a Gymnasium environment on the run's training arenas; ``budget`` the
-  decisions it may drive in all its environments together; ``workdir`` a directory of its own
-  (checkpoints); ``policy(observation) -> action`` in 0..5.
+  ``episode`` (N,) int64, ``terminals`` (N,) bool: the episode ended there by arrival,
+  collision or physics error); ``make_env()`` a Gymnasium environment on the run's training
+  arenas; ``budget`` the decisions it may drive in all its environments together; ``workdir`` a
+  directory of its own (checkpoints); ``policy(observation) -> action`` in 0..5.
 
 The protocol keeps the rest (for a method that plays by the interface: one that reaches past the
 wrapper, ``env.unwrapped``, is not stopped): the environments draw their arenas from the run's training stream

@@ -280,8 +280,8 @@ def policy_of(job: RunJob, train: bool = True) -> Callable:
     """The job's greedy policy on phi(s) (for ``kind = "expert"``: the demonstrator, an Agent that
     reads the whole observation), training (or resuming) it first if it trains
     (``nirl_mj.experiments.kinds``, the same for every kind); refused if its training saw one of the
-    run's test arenas. With ``train=False`` a run that has not finished is an error (a sweep's tests
-    only load)."""
+    run's test arenas. With ``train=False`` (a sweep's tests) an IRL run that has not finished is an
+    error; the other kinds as ``nirl_mj.experiments.kinds`` says."""
     from nirl_mj.experiments.kinds import KINDS
 
     trained = KINDS[job.method.kind](job, train)
@@ -314,7 +314,7 @@ class Execution:
     retries: int = 2
     report_only: bool = False  # run nothing: report the cells already finished (a partial table)
     reuse: str | None = None  # compare: an earlier output directory whose same cells are taken
-    only: tuple[str, ...] = ()  # compare: run these methods' cells only, report the others as stored
+    only: tuple[str, ...] = ()  # compare, suite: run these methods' cells only, report the others as stored
     points: tuple[str, ...] = ()  # suite, training axis: run these values' cells only, as ``only``
     writes_tables: bool = True  # False for a --report while the experiment runs (``one_writer``)
     restore: str | None = None  # suite: a published suite whose cells are taken first (``suite_restore``)

@@ -6,8 +6,9 @@ other methods would compute the same numbers. ``nirl-mj compare --reuse OLD`` co
 from OLD (the cell's record and its training run directory) before anything runs. A cell of
 method M and run r is taken only when all of these hold:
 
-- OLD's identity equals the new one in every key but the method list and the learners' settings
-  (task, test task, seed, tests, expert, demonstrations, config, sweep axes);
+- OLD's identity equals the new one in every key of :data:`SHARED_KEYS` (task, test task, seed,
+  tests, expert, demonstrations, sweep axes, test domain): not the method list, the learners'
+  settings or the experiment's ``[config]``, whose effect is in each learner's settings (below);
 - OLD's demonstrations hold the same arrays (drawn per run: the run's own; a run OLD has no
   demonstrations for is left to be computed);
 - M does not train and OLD holds M with the same definition; or M is a trained learner and OLD
@@ -230,8 +231,8 @@ def restore_published(
     definition or resolved learner settings (``rename``: take NEW's cells from SOURCE's OLD), and
     each run's test arenas. A method that is another computation is left to be computed, and said;
     a cell whose training run ``out`` already holds (an interrupted one) too. Every check is made
-    before anything is written: differing test arenas, a ``rename`` naming a method that neither
-    side holds, or ``runs`` outside the experiment are clear errors that leave ``out`` as it was.
+    before anything is written: differing test arenas, a ``rename`` naming a method that its
+    side does not hold, or ``runs`` outside the experiment are clear errors that leave ``out`` as it was.
     A restored cell records ``restored_from`` (the absolute path of SOURCE's results.json, and
     ``reused_as`` when renamed) and has no ``seconds`` (it was not timed here) and no training run
     in ``out``/runs.

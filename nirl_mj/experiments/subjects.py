@@ -59,7 +59,8 @@ class Subject:
 
 
 def run_subject(run_dir: str | os.PathLike, which: str = "selected", task: str | None = None) -> Subject:
-    """A trained run's greedy policy (``which``: selected, last or an iteration number; an RL run
+    """A trained run's policy (greedy; an RL run's as ``experiments.rl.load_rl_policy`` gives it;
+    ``which``: selected, last or an iteration number; an RL run
     (``nirl-mj rl``) has its selected and last checkpoints only), on its own task unless ``task`` (a
     name or path) is given."""
     run = RunDir(run_dir)
