@@ -26,11 +26,12 @@ sequence is followed by braking (action 5 until the robot's forward velocity
 changes sign, or action 0 if it was reversing), because the robot cannot stop
 instantly: a sequence is only *safe* if the robot can still stop after it.
 Safe means every sampled pose keeps ``margin`` metres between the robot's
-outline and the static obstacles, the border walls and the moving obstacles
-(predicted with constant velocity, bouncing off the border walls). Among the
+outline and the static obstacles and the border walls, and ``moving_margin``
+from the moving obstacles (predicted with constant velocity, bouncing off the
+border walls). Among the
 safe sequences it takes the first action of the one ending lowest on the cost
-field (the value at the end point plus the field's slope along the final
-heading times one decision's travel, so the heading counts), with a penalty
+field (twice the value at the end point plus the field's slope along the
+final heading times one decision's travel, so the heading counts), with a penalty
 for passing close to obstacles. With no safe sequence
 it takes the one with the largest clearance, which is usually backing off.
 
@@ -344,7 +345,7 @@ def _dijkstra_field(
     ny, nx = occ.shape
     free = ~occ
     # Gap to the nearest obstacle (m): distance to the nearest blocked cell centre,
-    # plus the inflation, minus the robot radius.
+    # plus the inflation, minus the robot radius and half a cell (the blocked cell's edge).
     gap = ndimage.distance_transform_edt(free) * res + (inflate - BODY_RADIUS) - 0.5 * res
     shortfall = np.clip(1.0 - gap / clearance_scale, 0.0, 1.0)
     weight = (1.0 + clearance_weight * shortfall * shortfall).ravel()
@@ -373,7 +374,7 @@ def _dijkstra_field(
     if not reachable[grid.cell_of(*layout.start)] and not force:
         return None
     # Fill blocked/unreachable cells from their nearest reachable cell, sloping
-    # upwards into obstacles so the bilinear field pushes the robot out of them.
+    # upwards into obstacles so the field pushes the robot out of them.
     far, (fi, fj) = ndimage.distance_transform_edt(~reachable, return_indices=True)
     values = np.where(reachable, dist, dist[fi, fj] + slope * far * res)
     return CostField(values, res, reachable)

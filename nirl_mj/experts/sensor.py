@@ -119,9 +119,8 @@ class SensorExpert:
 
     Args:
         speed: forward speed (m/s) if known; ``None`` estimates the travel per
-            decision from the odometry (the largest step seen so far, 1 m until
-            the robot has moved).
-        decision_period: seconds per decision (only used with ``speed``).
+            decision from the odometry (the largest step seen so far, at least 1 m).
+        decision_period: seconds per decision (the look-ahead arcs' duration).
         hard_margin: closest allowed gap (m) between the robot's outline and a
             remembered hit along the look-ahead arcs.
         soft_clearance: gap (m) below which an arc pays a danger penalty while

@@ -3,7 +3,8 @@
 Our dataset files (docs/DATASET.md) keep phi(s), ranges, poses and actions, not every observation,
 reward or episode end. But an episode is a function of its arena seed and its actions, so
 :func:`export_minari` replays each trajectory's actions in a ``NavigationEnv`` reset with its
-arena seed, under Minari's ``DataCollector``: the Minari dataset gets the full observation Dict,
+arena seed, into Minari's episode buffers (``EpisodeBuffer``, as its ``DataCollector`` fills them,
+without the jax it needs): the Minari dataset gets the full observation Dict,
 rewards, terminations, truncations and the environment's spec (its id and the task as a dict), so
 ``minari.load_dataset(ID).recover_environment()`` builds the same environment and the episodes
 replay to the same observations bit for bit (the episode's seed is its arena seed). Continuous

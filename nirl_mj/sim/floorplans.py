@@ -17,14 +17,17 @@ scale with the start-target distance (``arena.floor_plan_count = 0``) or are giv
 - ``clusters``: 6-9 boxes and cylinders (0.5-1 m) grouped with 1.5-3 m gaps between them.
 - ``blocks``: big boxes, sides 8-20 m, near the line.
 - ``rooms``: walls parallel to the arena's sides partitioning it into a grid of rooms; every
-  wall between two crossings has a doorway of :data:`GAP_WIDTH`.
-- ``slalom``: staggered walls across the line, 8-12 m apart, alternately from the border on
-  the right and on the left to 3-6 m past the line: passing them is a zig-zag.
+  wall between two crossings has a doorway of :data:`GAP_WIDTH` (a stretch too short for one,
+  with 1 m kept from the crossing walls, is left open).
+- ``slalom``: staggered walls across the line, 8-12 m apart (closer, down to 4 m, where the
+  arena is too short for them), alternately from the border on the right and on the left to
+  3-6 m past the line: passing them is a zig-zag.
 - ``mixed``: one of the six drawn per episode.
 
-Structures keep :data:`SEPARATION` metres from each other and ``clear_radius`` plus the
-robot radius from start and target. Walls of corridors, pockets, rooms and slalom carry the
-wall flag (the sensors report walls); clusters and blocks are obstacles.
+Pockets, clusters and blocks keep :data:`SEPARATION` metres from each other (the walls of
+corridors, rooms and slalom are laid out by their plan, rooms' walls crossing); every structure
+keeps ``clear_radius`` plus the robot radius from start and target. Walls of corridors, pockets,
+rooms and slalom carry the wall flag (the sensors report walls); clusters and blocks are obstacles.
 """
 
 from __future__ import annotations

@@ -51,7 +51,8 @@ def observation_specs(spec: TaskSpec) -> dict[str, specs.BoundedArray]:
         return specs.BoundedArray(shape, dtype, np.broadcast_to(np.asarray(low, dtype), shape),
                                   np.broadcast_to(np.asarray(high, dtype), shape), name)  # fmt: skip
 
-    # A clearance is a hit's distance from the robot's centre minus its radius: at least -radius.
+    # A clearance is a hit's distance from the robot's centre minus its radius, clamped at 0 by
+    # sensing; the bound keeps -radius, what the unclamped difference could reach.
     out = [
         bounded("features", (features.N_FEATURES,), np.float32, phi_low, phi_high),
         bounded("ranges", (features.N_SENSORS,), np.float64, -BODY_RADIUS, sensing),

@@ -6,7 +6,7 @@ rays: -16, -8, 0, 8, 16 degrees). All rays, plus one towards the target, are
 cast in a single ``mj_multiRay`` call from the robot's centre at sensor height;
 they see only geom group 0 (the world), so the robot never sees itself. A
 reading is the clearance from the robot's outline: hit distance minus the body
-radius.
+radius, at least 0.
 
 The robot model also carries the nine sensors as MJCF rangefinders
 (``models/robotino/robotino.xml``: ``<rangefinder camera="S<i>_cone">``, one

@@ -1,13 +1,16 @@
-"""The navigation task: a Robotino in a procedural arena, six discrete actions.
+"""The navigation task: a Robotino in a procedural arena, six discrete actions (or a continuous
+twist, ``control.actions = "continuous"``).
 
 One action holds for a decision period (default 0.5 s). Composer's own loop
 calls Python hooks around every physics substep, which costs 40-60 % of the
 simulation time for this model; so this task reports one composer substep per
 control step and runs the other substeps itself in ``before_step``, in C
-(``mj_step`` with ``nstep``), one command period (default 10 ms) at a time. Per
-command period it sets the wheel commands, moves the moving obstacles and
-checks for collision, arrival and divergence; the episode's outcome is decided
-there, at 10 ms resolution.
+(``mj_step`` with ``nstep``). Where a contact or an arrival can happen within the
+decision, it steps one command period (default 10 ms) at a time: per period it
+sets the wheel commands, moves the moving obstacles and checks for collision and
+arrival (and then divergence), so the outcome is decided at 10 ms resolution.
+Where nothing is within reach (``_nothing_within_reach``), it steps each run of
+equal commands in one call; the end of the decision checks every outcome either way.
 """
 
 from __future__ import annotations

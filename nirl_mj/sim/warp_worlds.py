@@ -83,7 +83,8 @@ from nirl_mj.sim.task import (
 )
 
 ARENA_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_aabb", "geom_rbound", "geom_rgba")
-"""The model fields a layout writes (``NavigationArena.apply_layout``), held per world."""
+"""The model fields a layout writes (``NavigationArena.apply_layout``) that are held per world; its
+contact bits are armed in every slot instead (``arm_every_slot``), and ``bvh_aabb`` is not kept."""
 
 _STATE_FIELDS = ("qpos", "qvel", "ctrl", "geom_xpos", "geom_xmat")
 """Data fields a world's start copies from the reference. Warp computes the poses of geoms fixed to
