@@ -7,7 +7,7 @@ one over the training curves. Rerun shows one timeline at a time and a view cann
 own (rerun-io/rerun#6828), so the layout shows training where the timeline does not matter: a
 figure of the curves (a static image) and a table of their values per iteration (a dataframe
 view, which queries ``iteration`` whatever the time panel shows). The time panel opens on
-``step``, paused at its start.
+``step`` (``iteration`` in a recording of training only), paused at its start.
 
 Tabs along the top, one per part of the recording (:func:`default_blueprint`), each named after
 its method: ``demonstrations``; ``<method> training`` (the curves, the values) and ``<method>

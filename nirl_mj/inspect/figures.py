@@ -163,7 +163,7 @@ def _draw_layout(ax, layout) -> None:
 def paths_figure(runs: dict[str, Sequence[Trajectory]], arenas: int = 3):
     """Top-down view (metres) of the first ``arenas`` test arenas with each policy's path (the NIRL
     paper's Fig. 5; an open matplotlib figure: close it). Each policy has its own colour and style;
-    the first is drawn widest and lowest, each next one narrower above it, so that a path that
+    the first is drawn widest and lowest, the next ones narrower above it, so that a path that
     runs along another (always forward's, which starts as every other does) stays visible. A
     marker at a path's end says how it ended (:data:`OUTCOME_TEXT`); each panel's legend gives
     every path's outcome and length, the figure's the start, target and end markers."""

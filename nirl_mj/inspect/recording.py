@@ -14,11 +14,11 @@ docs/INSPECT.md lists everything, with the blueprint):
   (line strip coloured by outcome), ``P/end`` (the last position, in the outcome's
   colour) and ``P/end/label`` (the outcome's word just north of it), ``P/label``
   (the episode's index and outcome, north of the arena),
-  ``P/robot/footprint`` and ``P/robot/heading`` (in the robot's frame),
+  ``P/robot/footprint``, ``P/robot/heading`` and ``P/robot/marker`` (in the robot's frame),
   ``P/reward_path`` (the path's segments coloured by r_theta, with a learned reward);
 - on the ``step`` (decision index) and ``time`` (simulated seconds)
   timelines: ``P/robot`` (pose, a 3-D transform), ``P/robot/rays`` (nine
-  rays), ``P/action`` (text), ``P/features`` (the 16 values of phi(s)),
+  rays), ``P/action`` (text), ``P/features/{danger,target,flags}`` (the 16 values of phi(s)),
   ``P/reward`` (r_theta(s_t, a_t), with a learned reward), and
   ``P/arena/moving`` (moving obstacles).
 

@@ -3,7 +3,7 @@
 One table serves both the recording (:mod:`nirl_mj.inspect.recording` logs each series' colour and
 name once, as static ``SeriesLines``) and the layout (:mod:`nirl_mj.inspect.blueprint` gives each
 group its own plot), so a plot never mixes a series climbing to 60 with one that stays below 1.
-Colours are Tableau 10, which a reader tells apart also in small plots.
+Colours are Tableau 10, which a reader tells apart also in small plots, and a darker grey.
 """
 
 from __future__ import annotations
@@ -164,7 +164,7 @@ def legend_image(columns: Sequence[Sequence[LegendSection]]) -> np.ndarray:
 
 
 def _draw_swatch(ax, swatch: Swatch, x: float, y: float, rectangle, circle) -> None:
-    """Draws ``swatch`` in the 24 x 18 pixel cell at (x, y) (top left)."""
+    """Draws ``swatch`` in the legend cell at (x, y) (top left; 18 pixels high, 24 or 25 wide)."""
     mid = y + _LEGEND_ROW / 2
     colours = [tuple(v / 255 for v in c) for c in swatch.colours]
     edge = (0.35, 0.35, 0.35)

@@ -479,8 +479,8 @@ def snapshot_strip(
         snapshots: frames, evenly spaced over the episode's decisions, first and last included.
         camera: one of ``CAMERAS``; ``"top"`` shows the whole arena.
         width, height: pixels of one frame (even, at most 1280 x 960); the strip is
-            ``snapshots`` frames side by side with 4-pixel gaps. A top view's frame is the
-            arena's square, min(width, height) on a side.
+            ``snapshots`` frames (fewer in an episode of fewer decisions) side by side with
+            4-pixel gaps. A top view's frame is the arena's square, min(width, height) on a side.
         overwrite: replace an existing ``out_png`` (False: FileExistsError).
 
     Each frame shows the path driven so far and is labelled with its time, decision index and,

@@ -18,11 +18,11 @@ pi^(i), so each update does step 5 for the policy the previous update's reward p
 steps 2-3. Step 4 is the loop's ONE iteration of SARSA targets and backpropagation (eq. 14-15)
 on r = theta^T f with the network warm-started, not an RL solve to optimality: the policy whose
 mu is measured next has only partly adapted to w^(i). The loop's stopping rule (step 3) is
-``LearnerConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
-by the loop's ``LearnerConfig.selection`` (by default balanced accuracy on the demonstrations), as
+``LoopConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
+by the loop's ``LoopConfig.selection`` (by default balanced accuracy on the demonstrations), as
 for every method, not the paper's "best t or a mixture".
 
-Feature expectations (``LearnerConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
+Feature expectations (``ApprenticeshipConfig.al_expectations``): ``"trajectory"`` is the papers' mu (eq. 11):
 each trajectory's discounted feature sum from its first pair, averaged over trajectories. With
 the paper's gamma = 0.65 that weighs about the first three decisions of each trajectory, in open
 space near the start (about ten at the default's 0.9; docs/ALGORITHM.md, "The baselines").

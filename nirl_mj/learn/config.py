@@ -58,7 +58,8 @@ class LoopConfig:
     margin_loss: float = (
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
-    epsilon: float = float("-inf")  # stop when the reward step's margin t <= epsilon (paper: 0)
+    # stop when the reward step's margin t <= epsilon (the paper gives no value)
+    epsilon: float = float("-inf")
     reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
     # the value of an episode's end in the targets (learn/terminal.py): "learned" (the absorbing
     # state's reward from the demonstrations' and the learner's ends) or "outcome" (an arrival

@@ -5,7 +5,8 @@ Each iteration ("episode" in the paper):
 1. run the current policy (Boltzmann, eq. 8) for ``trajectories_per_episode``
    trajectories in fresh training arenas (line 4);
 2. find theta by projected subgradient on the max-margin objective (eq. 12-13,
-   line 5); the minimum is the margin t; stop if t <= epsilon (lines 6-8);
+   line 5); minus the objective's minimum is the margin t (how far the best reward still puts
+   the expert above every alternative; 0 once the learner matches); stop if t <= epsilon (lines 6-8);
 3. rewards r_theta = theta^T f (eq. 2), value targets (eq. 14: SARSA in the
    paper variant; n-step Q-learning targets in the default, docs/ALGORITHM.md)
    and backpropagation on the cross-entropy cost (eq. 15) give the next

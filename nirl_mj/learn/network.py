@@ -150,7 +150,7 @@ def draw_actions(cdf: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def greedy_actions(q: np.ndarray) -> np.ndarray:
     """Greedy actions a = argmax_u G(s)_u (eq. 9), lowest index on ties.
 
-    q: (N, A) -> (N,) int64 indices (q (A,) -> 0-d array).
+    q: (N, A) -> (N,) int64 indices (q (A,) -> a numpy int64 scalar).
     """
     # eq. 9: a_t = argmax_{u in A} G(s_t)   (np.argmax returns the first maximum)
     return np.argmax(np.asarray(q), axis=-1)

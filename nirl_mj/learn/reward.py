@@ -96,7 +96,8 @@ class RewardModel:
             )
 
     def reward(self, phi: np.ndarray, action: int | np.ndarray) -> np.ndarray:
-        """r_theta(s, a) for phi (..., 16) and actions (...) -> (...)."""
+        """r_theta(s, a) for phi (N, 16) (or (16,), one state) and actions (N,) -> (N,); phi of more
+        dimensions is flattened to rows, and the result with it."""
         phi = np.atleast_2d(phi)
         actions = np.broadcast_to(np.asarray(action), phi.shape[:-1]).ravel().astype(int)
         # theta^T f(s, a) = b(s) . theta_a: f is b(s) in action a's block (eq. 4-5)

@@ -20,7 +20,7 @@ classifier, and trains it to predict the expert's actions. The algorithm, in the
 
 Readings, each with its reason (docs/ALGORITHM.md, "The baselines"):
 
-- l = ``LearnerConfig.margin_loss`` (0.1, not the paper's 1) and theta kept in the ball ||theta|| <= 1
+- l = ``LoopConfig.margin_loss`` (0.1, not the paper's 1) and theta kept in the ball ||theta|| <= 1
   (projection after each step) instead of the paper's lambda/2 ||theta||^2 term, its constrained
   form: the margin then has the meaning it has in the default NIRL (rewards in the units of the
   features, in [0, 1]). Without a constraint or lambda the criterion is homogeneous in (theta, l)

@@ -13,9 +13,10 @@ absorbing state; the value targets of eq. 14 need that state's value. Two readin
   batch 0 (clipped to [0, 1]: what the best scaled reward, 1 - gamma a step, earns forever).
   The scale is relative to the batch of ends it is given (the replay window): when the window
   mixes arrivals and collisions, the learner's arrivals end where the expert's do and come out
-  near 1, its collisions (danger 7 in their blocks) near 0; the learner's worst end is always
-  worth 0, even in a window of arrivals only, and a window of one end gives it 0
-  (tests/test_information_budget.py pins these cases). As DAC's absorbing state does for GAIL
+  near 1, its collisions (danger 7 in their blocks) near 0; the learner's worst end is
+  worth 0, even in a window of arrivals only, and a window of one end gives it 0; unless the
+  learner's mean end block is the expert's (w = 0: nothing tells them apart), when every end is
+  worth 1 (tests/test_information_budget.py pins these cases). As DAC's absorbing state does for GAIL
   (Kostrikov et al. 2019), this makes an episode's end neither free nor fixed in value, without a
   task signal.
 - ``"outcome"``: ``terminal_arrival_value`` for an arrival, 0 for any other end. It reads the
@@ -49,6 +50,6 @@ def absorbing_values(expert_ends: np.ndarray, learner_ends: np.ndarray, kind: st
     # and so above the learner's worst: the span below is positive unless w = 0 (the ends match).
     top = float(state_reward_features(expert_ends, kind).mean(axis=0) @ w)
     low = float(scores.min())
-    if top - low <= 1e-12:  # every end of the learner's is where the expert's ends are
+    if top - low <= 1e-12:  # w = 0: the learner's mean end is the expert's, no end is told apart
         return np.ones(len(learner_ends))
     return np.clip((scores - low) / (top - low), 0.0, 1.0)
