@@ -118,7 +118,8 @@ def test_al_per_state_step_measures_the_rollouts_policy_in_the_experts_states():
     assert t == pytest.approx(np.linalg.norm(w))
     np.testing.assert_allclose(theta, w / t)
     # step 2 with a policy that takes forward w.p. 1/2: mu^1 = pattern(1/2, 1/10 x 5), the segment
-    # from mu^0 points straight at mu_E, c = 0.4: mu_bar = mu^1 (the projection stops at mu)
+    # from mu^0 points straight at mu_E and covers 0.4 of the way, so the projection's coefficient
+    # is 1 / 0.4 = 2.5, clipped to 1: mu_bar = mu^1 (the projection stops at mu)
     skewed = RolloutContext(
         eta=1.0, q_values=lambda phi: np.tile([math.log(5.0), 0, 0, 0, 0, 0], (len(phi), 1))
     )

@@ -278,5 +278,6 @@ def test_the_main_job_and_experiments_refuse_a_continuous_task_before_any_work(t
     experiment.write_text(body.format('["BC", "rule"]'))
     with pytest.raises(ExperimentError, match=r"BC choose among the six discrete actions"):
         load_experiment(experiment)
-    experiment.write_text(body.format('["rule", "forward", "expert"]'))
-    assert [m.name for m in load_experiment(experiment).methods] == ["rule", "forward", "expert"]
+    experiment.write_text(body.format('["rule", "forward", "expert", "PPO-reward"]'))
+    names = [m.name for m in load_experiment(experiment).methods]
+    assert names == ["rule", "forward", "expert", "PPO-reward"]

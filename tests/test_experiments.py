@@ -84,6 +84,8 @@ def test_a_shipped_experiment_still_resolves_to_the_settings_of_its_recorded_res
     learner reads (settings added since then are not in it)."""
     results, names = RECORDED.get(task, (task, {}))
     recorded = ROOT / "docs" / "results" / results / "experiment.json"
+    if not recorded.is_file():  # a suite's identity is published beside its tables
+        recorded = ROOT / "docs" / "results" / "suites" / f"{task}.experiment.json"
     if not recorded.is_file():
         pytest.skip(f"no recorded results for {task}")
     path = next(p for p in [ROOT / "tasks" / f"{task}.toml", *ROOT.glob(f"tasks/*/{task}.toml")]
@@ -683,8 +685,9 @@ def test_a_cell_runs_on_one_torch_thread_and_the_caller_keeps_its_own():
 
 
 def test_a_worker_death_costs_no_attempt_to_the_cells_beside_it(tmp_path):
-    """Two cells run together and the pool breaks: the innocent one is run again alone without an
-    attempt counted, and so is the one that died (it survives its second, lone run)."""
+    """Two cells run together and the pool breaks: the one that died is run again alone without an
+    attempt counted (it survives its second, lone run), and the one beside it, if it was still
+    running, too; either way it finishes, not failed."""
     retries = []
     cells = [Cell("dies", dying_cell, (str(tmp_path),)),
              Cell("slow", counted_cell, (str(tmp_path), "slow", 0))]  # fmt: skip
@@ -693,6 +696,7 @@ def test_a_worker_death_costs_no_attempt_to_the_cells_beside_it(tmp_path):
     assert report.results["dies"] == {"survived": True} and not report.failures, report.failures
     assert retries and all("no attempt counted" in why for _, why in retries)
     assert "dies" in {cell_id for cell_id, _ in retries}
+    assert report.results["slow"]["name"] == "slow"
 
 
 def test_reuse_takes_the_same_cells_of_an_earlier_comparison_and_computes_the_rest(tmp_path, capsys):

@@ -30,7 +30,7 @@ def refused(capsys, argv: list[str], *needles: str) -> str:
     """Runs the command; it must exit 2 with one ``error:`` line holding every needle."""
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert "Traceback" not in err and "error:" in err, err
+    assert "Traceback" not in err and sum("error:" in line for line in err.splitlines()) == 1, err
     for needle in needles:
         assert needle in err, (needle, err)
     return err

@@ -175,14 +175,16 @@ def test_absorbing_values_by_hand():
     np.testing.assert_allclose(w[:7], -2 / 3)
     assert w[16] == pytest.approx(2 / 3)
     np.testing.assert_allclose(absorbing_values(expert, learner, "extended"), [1.0, 0.0, 0.0])
-    # a collision that also sees the target lies between: (-14/3 + 2/3 - (-14/3)) / (2/3 + 14/3) = 1/8
+    # a collision that also sees the target lies between. Now mu_pi's I is 2/3, so w's I component is
+    # 1/3 (D still -2/3): scores 1/3, -14/3 and -14/3 + 1/3, the expert's mean 1/3; the third end is
+    # worth (-13/3 + 14/3) / (1/3 + 14/3) = 1/15
     learner = np.array([_phi(detected=1), _phi(danger=7), _phi(danger=7, detected=1)])
     values = absorbing_values(expert, learner, "extended")
     w = state_reward_features(expert, "extended").mean(0) - state_reward_features(learner, "extended").mean(0)
     scores = state_reward_features(learner, "extended") @ w
     top = state_reward_features(expert, "extended").mean(0) @ w
     np.testing.assert_allclose(values, np.clip((scores - scores.min()) / (top - scores.min()), 0, 1))
-    assert 0.0 < values[2] < values[0] == 1.0 and values[1] == 0.0
+    np.testing.assert_allclose(values, [1.0, 0.0, 1 / 15])
 
 
 def test_absorbing_values_edge_cases():

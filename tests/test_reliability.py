@@ -185,7 +185,7 @@ def test_two_writers_of_one_run_or_experiment_the_second_is_refused_every_time(d
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_any_damage_to_a_checkpoint_is_refused_or_resumed_never_a_traceback(
-    finished, demos, tmp_path_factory, data
+    finished, demos, tmp_path_factory, capsys, data
 ):
     """Random truncation, byte flips, NaN/inf, wrong dtypes and shapes of the checkpoint: a resume
     either refuses with one line (the run unchanged) or resumes a state it can continue."""
@@ -218,9 +218,12 @@ def test_any_damage_to_a_checkpoint_is_refused_or_resumed_never_a_traceback(
         state[key] = value
         write_npz(path, state)
     before = digests(run)
+    capsys.readouterr()  # one capture serves every example
     code = main(resume_args(demos, run))
     assert code in (0, 2)
     if code == 2:
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and sum("error:" in line for line in err.splitlines()) == 1, err
         assert digests(run) == before
 
 
