@@ -3,8 +3,8 @@
 For each expert on tasks/navigate.toml: trajectories and environment steps
 (decisions) per second in one process, and the time spent in the expert's
 ``reset`` + ``act`` as a share of the time spent in ``env.step`` over the same
-episodes (target: at most 10 %). Then the wall time of ``collect`` with 1 and
-2 worker processes. Writes docs/PERFORMANCE.md.
+episodes (target: at most 10 %). Then the wall time of ``collect`` with 1 worker
+(this process) and 2 (spawned processes; on a machine of 2 cores or more). Writes docs/PERFORMANCE.md.
 
     python bench/bench_demos.py [--episodes 20]
 """
@@ -117,7 +117,7 @@ def main() -> None:
     )
     body = (
         f"{args.episodes} episodes of tasks/navigate.toml (tyre drive) per expert, one process; then "
-        "`collect` with 1 and 2 processes (spawned; includes their start-up). Target: expert "
+        "`collect` with 1 worker (this process) and 2 (spawned; includes their start-up). Target: expert "
         "decisions at most 10 % of the simulation time.\n\n" + experts + "\n\n" + workers
     )
     if not args.no_write:

@@ -2,16 +2,18 @@
 
 Trains the default variant on the default task (``--episodes`` iterations,
 demonstrations from ``--demos`` or 30 fresh sensor-expert ones) with every
-``env.reset``/``env.step`` timed, and splits the wall time into:
+``env.reset``/``env.step`` of its rollouts (the ``cpu`` backend's environment,
+``nirl_mj.sim.rollouts``) timed, and splits the wall time into:
 
 - simulation of the training rollouts (env.reset + env.step);
 - validation (greedy episodes on the validation arenas, for policy selection);
 - the learner: everything else (action selection on phi(s), the reward step,
-  SARSA targets and backpropagation, checkpoints and metrics).
+  the value targets (Q-learning's in the default) and backpropagation, checkpoints and metrics).
 
-The target (issue #4): the learner adds at most 20 % to the simulation time of
-the training rollouts. Validation is reported separately: it simulates other
-episodes than those trained on. One process, one core. Writes docs/PERFORMANCE.md.
+The target (issue 14): the learner adds at most 25 % to the simulation time of
+the training rollouts over a default run of 60 iterations. Validation is reported
+separately: it simulates other episodes than those trained on. One process, one
+core. Writes docs/PERFORMANCE.md.
 
     python bench/bench_learner.py [--episodes 20] [--demos demos.npz]
 """
@@ -23,9 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from nirl_mj.experiments import evaluation as evaluation
 from nirl_mj.experiments import training
 from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.sim import rollouts as rollouts_module
 from nirl_mj.sim import spec as specs
 
 try:
@@ -59,7 +61,7 @@ class _Timed:
 
 def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
     clock = {"env": 0.0, "validation": 0.0, "validation_env": 0.0}
-    make_env, evaluate = training.make_env, training.evaluate
+    make_env, evaluate = rollouts_module.make_env, training.evaluate
 
     def timed_evaluate(*args, **kwargs):
         env_before, t0 = clock["env"], time.perf_counter()
@@ -69,8 +71,9 @@ def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
             clock["validation"] += time.perf_counter() - t0
             clock["validation_env"] += clock["env"] - env_before
 
-    # training.py's own names: the environment its rollouts use and the evaluation of its validation
-    training.make_env = lambda *a, **k: _Timed(make_env(*a, **k), clock)
+    # the environment the cpu backend's rollouts use (sim.rollouts), and training.py's evaluation of
+    # its validation
+    rollouts_module.make_env = lambda *a, **k: _Timed(make_env(*a, **k), clock)
     training.evaluate = timed_evaluate
     try:
         task = specs.load_task("navigate")
@@ -81,7 +84,7 @@ def measure(episodes: int, demos: Path, seed: int = 0) -> dict:
             )
             total = time.perf_counter() - t0
     finally:
-        training.make_env, training.evaluate = make_env, evaluate
+        rollouts_module.make_env, training.evaluate = make_env, evaluate
     rollouts = clock["env"] - clock["validation_env"]
     learner = total - rollouts - clock["validation"]
     return {
@@ -109,6 +112,7 @@ def main() -> None:
             demos = Path(tmp) / "demos.npz"
             save_dataset(demos, collect(specs.load_task("navigate"), ExpertConfig("sensor"), 30, 0))
         r = measure(args.episodes, demos)
+    source = f"the demonstrations of `{args.demos}`" if args.demos else "30 sensor-expert demonstrations"
     rows = [[f"{r['iterations']}", f"{r['total_s']:.1f}", f"{r['rollout_sim_s']:.1f}",
              f"{r['learner_s']:.1f}", f"{100 * r['learner_share']:.1f} %",
              f"{r['validation_s']:.1f}", f"{100 * r['validation_share']:.1f} %"]]  # fmt: skip
@@ -118,8 +122,8 @@ def main() -> None:
     )  # fmt: skip
     body = (
         "NIRL default variant on `tasks/navigate.toml` (training rollouts on the `planar` drive), "
-        "30 sensor-expert demonstrations, one process. *Learner* is everything but the simulation: "
-        "action selection, the reward step, SARSA targets and backpropagation, checkpoints. Target: "
+        f"{source}, one process. *Learner* is everything but the simulation: action selection, the "
+        "reward step, the value targets (Q-learning's) and backpropagation, checkpoints. Target: "
         "learner / simulation <= 25 % over a default run of 60 iterations (issue 14; issue 4 asked "
         "for 20 % over 20). Validation (greedy episodes on 20 validation arenas every "
         "5 iterations, for a policy selection by success: the default before 2026-11-26; today's "

@@ -11,7 +11,8 @@
    recording calls (per-iteration scalars, then demonstrations with r_theta and
    the reward map at the end) is timed directly, since wall-time differences of
    a few % drown in this machine's +-30 % drift. Without ``--rerun`` no
-   recording object exists; a subprocess checks that ``rerun`` is not even imported.
+   recording object exists; a subprocess reports whether importing ``nirl_mj.cli`` imports
+   ``rerun`` (it does).
 
 Writes docs/PERFORMANCE.md.
 

@@ -4,7 +4,7 @@ Runs the protocol as ``nirl-mj compare`` does, but with ``--runs`` runs (default
 instead of 25, on the local executor with ``--workers`` processes, in a temporary
 directory (demonstrations included), and projects the 25-run wall time from it:
 demonstrations + cells' wall x 25 / runs. The cells of a run are independent and
-the experiment has 8 x 25 of them; the short run's tail (a worker idle while the
+the experiment has 18 x 25 of them; the short run's tail (a worker idle while the
 last cell finishes) is multiplied too, so the projection errs on the long side.
 With ``--existing DIR``, it also reads the cell times of a finished
 (or partial) ``nirl-mj compare`` directory: the core time the real protocol took.

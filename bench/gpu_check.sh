@@ -5,9 +5,10 @@
 #   bash bench/gpu_check.sh run     # the last: unpack every part, run bench_backend.py on the GPU
 # The run writes docs/PERFORMANCE.md's Warp section there and copies it, the JSON line and the log
 # to $OUT, which comes back. On an H100 at commit 7115e0b (docs/results/gpu_backend) the run,
-# both CUDA-graph modes, took 354 s of the call's 600 s, 131 s of it compiling Warp's kernels. GPU_CHECK_DEVICE=cpu
-# GPU_CHECK_ARGS='--worlds 4 --quick --json' tries the same steps on Warp's CPU device (with a pack
-# for the local Python: gpu_pack.py --python 3.11).
+# both CUDA-graph modes, took 354 s of the call's 600 s, 131 s of it compiling Warp's kernels. It needs
+# nvidia-smi (the machine's description comes first). GPU_CHECK_DEVICE=cpu GPU_CHECK_ARGS='--worlds 4
+# --quick --json' runs the benchmark on Warp's CPU device instead, on a machine with nvidia-smi and a
+# pack that keeps that device (gpu_pack.py --python 3.11 --cpu-device).
 set -euo pipefail
 verb=${1:?stash or run}
 mkdir -p .gpu-stash

@@ -44,7 +44,8 @@ ALLOWED_COLOUR, BROKEN_COLOUR = "#555555", "#d62728"
 
 
 def rooms() -> dict[str, list[str]]:
-    """Room -> its modules' short names: the sub-packages of nirl_mj, and cli.py."""
+    """Room -> its modules' short names: the sub-packages of nirl_mj (cli among them), and any
+    top-level module."""
     found = {p.parent.name: [] for p in sorted(PACKAGE.glob("*/__init__.py"))}
     for room, names in found.items():
         names.extend(p.stem for p in sorted((PACKAGE / room).glob("*.py")) if p.stem != "__init__")

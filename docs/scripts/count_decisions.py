@@ -10,9 +10,11 @@ every episode it drives: the training rollouts, and the validation and selection
     python docs/scripts/count_decisions.py OUT [RUN ...] [--method NIRL] [--task tasks/table1.toml]
     (OUT: the experiment's --out, for its demonstrations; default run 0)
 
-The count hooks ``run_episode`` where training and evaluation call it; nothing else changes, so the
-run trains as in the experiment (it is not kept). Where OUT holds the run, the retrained run's
-policy selection must equal the stored one's, or the script stops: the count is of the same run.
+The count hooks ``run_episode`` where the ``cpu`` backend's rollouts call it
+(``nirl_mj.sim.rollouts``), and counts an episode as validation while training's ``evaluate`` runs
+(validation and selection); nothing else changes, so the run trains as in the experiment (it is not
+kept). Where OUT holds the run, the retrained run's policy selection must equal the stored one's,
+or the script stops: the count is of the same run.
 """
 
 from __future__ import annotations
@@ -22,24 +24,32 @@ import json
 import tempfile
 from pathlib import Path
 
-import nirl_mj.experiments.evaluation as evaluation
 import nirl_mj.experiments.training as training
+import nirl_mj.sim.rollouts as rollouts
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.protocol import demos_path, run_jobs
 from nirl_mj.learn.config import LearnerConfig
 
 
-def counting(module, counts: dict[str, int], key: str) -> None:
-    """Replaces ``module.run_episode`` by one that adds each episode's decisions to ``counts[key]``."""
-    original = module.run_episode
+def counting(counts: dict[str, int]) -> None:
+    """Replaces the rollouts' ``run_episode`` by one that adds each episode's decisions to
+    ``counts["training"]``, or ``counts["validation"]`` while training's ``evaluate`` runs."""
+    original, evaluate, phase = rollouts.run_episode, training.evaluate, ["training"]
 
     def run_episode(env, agent, seed, on_step=None):
         trajectory = original(env, agent, seed, on_step)
-        counts[key] += len(trajectory.actions)
-        counts[key + " episodes"] += 1
+        counts[phase[0]] += len(trajectory.actions)
+        counts[phase[0] + " episodes"] += 1
         return trajectory
 
-    module.run_episode = run_episode
+    def validating(*args, **kwargs):
+        phase[0] = "validation"
+        try:
+            return evaluate(*args, **kwargs)
+        finally:
+            phase[0] = "training"
+
+    rollouts.run_episode, training.evaluate = run_episode, validating
 
 
 def main() -> None:
@@ -52,8 +62,7 @@ def main() -> None:
     experiment = load_experiment(args.task)
     jobs = run_jobs(experiment, args.out, {r: demos_path(args.out, experiment, r) for r in args.runs})
     counts: dict[str, int] = {}
-    counting(training, counts, "training")
-    counting(evaluation, counts, "validation")
+    counting(counts)
     for run in args.runs:
         job = jobs[(args.method, run)]
         if job.method.kind != "irl":
