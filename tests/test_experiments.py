@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from helpers import TINY_CONFIG, TINY_TABLES, cell_times, killed_after_cells
 
@@ -656,15 +657,25 @@ def test_a_default_pinned_or_dropped_in_config_resumes_the_same_output(tmp_path)
 
 
 def test_fig8_strip_is_written_from_the_first_run(tmp_path):
-    head = ('kind = "compare"\ntest_task = "dynamic"\nruns = 1\ntests = 1\nmethods = ["rule"]\n'
+    head = ('kind = "compare"\ntest_task = "dynamic"\nruns = 2\ntests = 1\nmethods = ["rule"]\n'
             '[strip]\nmethod = "rule"\nsnapshots = 3\nwidth = 64\nheight = 48\n')  # fmt: skip
     spec, out = write_spec(tmp_path, head), tmp_path / "out"
     assert main(["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]) == 0
     import imageio.v3 as iio
 
+    from nirl_mj.experts.policies import rule_policy
+    from nirl_mj.inspect.video import snapshot_strip
+
     strip = iio.imread(out / "strip.png")
     # three frames side by side, each the arena's square of the 48-pixel frame height
     assert strip.shape[0] == 48 and strip.shape[1] >= 3 * 48
+    experiment = load_experiment(spec)
+    firsts = [protocol.run_test_seeds(experiment, run, set())[0] for run in range(2)]
+    assert firsts[0] != firsts[1]
+    again = [iio.imread(snapshot_strip(experiment.test_task, rule_policy, seed, tmp_path / f"{seed}.png", 3,
+                                       "top", 64, 48)) for seed in firsts]  # fmt: skip
+    assert not np.array_equal(again[0], again[1])  # so the strip tells the runs apart
+    np.testing.assert_array_equal(strip, again[0])  # run 0's first test arena
     identity = json.loads((out / "experiment.json").read_text())
     assert identity["test_task"]["arena"]["moving_obstacles"] == 10
     assert identity["task"]["arena"]["moving_obstacles"] == 0
