@@ -30,13 +30,14 @@ from nirl_mj.sim.warp_worlds import WarpWorlds  # noqa: E402
 
 SEEDS = [1000, 1001, 1002, 1003]
 # The default task on a 24 m x 24 m floor with 4 obstacles (3.5 times the paper's density of 20 in
-# 100 m x 100 m): episodes of 20 to 60 decisions instead of 115, since Warp's CPU device is slow (about
-# a second a decision for 4 worlds on 2 cores). On SEEDS the rule arrives, times out (discrete, planar)
-# and collides (continuous), so every outcome is compared. The default task itself is measured by
-# bench/bench_backend.py (docs/PERFORMANCE.md).
+# 100 m x 100 m) and a step budget of 40 decisions (60 by default here): episodes of 20 to 40
+# decisions instead of 115, since Warp's CPU device is slow (about a second a decision for 4 worlds on
+# 2 cores; its Python launches, not the worlds, take the time). On SEEDS the rule arrives and times out
+# on every drive, and collides with continuous actions, so every outcome is compared. The default task
+# itself is measured by bench/bench_backend.py (docs/PERFORMANCE.md).
 SMALL = replace(
     load_task("navigate"), arena={"size": [24.0, 24.0], "start": [5.0, 5.0], "target": [19.0, 19.0],
-                                  "static_obstacles": 4},
+                                  "static_obstacles": 4}, control={"step_budget": 40},
 )  # fmt: skip
 
 
