@@ -63,6 +63,26 @@ class Silent:
 
     def train(self, demonstrations, make_env, budget, seed, workdir):
         return lambda observation: 0
+
+
+class Still:
+    """Never drives: its policy is the demonstrations' first action, or ``answer`` where given
+    (after ``after`` decisions)."""
+
+    reads = ("demonstrations", "features")
+    observation = "features"
+
+    def __init__(self, answer=None, after=0):
+        self.answer, self.after = answer, after
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        first, calls = int(demonstrations["actions"][0]), [0]
+
+        def policy(observation):
+            calls[0] += 1
+            return first if self.answer is None or calls[0] <= self.after else self.answer
+
+        return policy
 '''
 
 TINY = TINY_TABLES
@@ -80,6 +100,7 @@ def installed(tmp_path, monkeypatch):
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: walker-method\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
         "[nirl_mj.methods]\nWalker = walker_method:Walker\nSilent = walker_method:Silent\n"
+        "Still = walker_method:Still\n"
     )
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
@@ -149,11 +170,44 @@ def test_a_method_that_breaks_a_rule_fails_once_with_one_line_naming_it(
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0] and message in failed[0]
 
 
+def test_without_gymnasium_a_method_that_never_drives_runs_and_one_that_drives_is_told_the_extra(
+    installed, tmp_path, capsys, monkeypatch
+):
+    """Gymnasium is the optional extra nirl-mj[gym]: a method that never calls make_env needs none, and
+    one that does fails once, with one line naming the extra (not a bare ModuleNotFoundError)."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "gymnasium", None)  # import gymnasium: ModuleNotFoundError
+    for module in [m for m in sys.modules if m.startswith("nirl_mj.gym.")]:
+        monkeypatch.delitem(sys.modules, module)
+    path = spec(tmp_path, '["Still", "Walker"]')
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "Walker" in failed[0] and "(1 attempt(s))" in failed[0]
+    assert "method 'Walker' drives the robot: its environments are Gymnasium's; install the extra " \
+           "nirl-mj[gym]" in failed[0]  # fmt: skip
+    assert json.loads((tmp_path / "out" / "cells" / "Still-run000.json").read_text())["result"]["tests"] == 2
+
+
+def test_a_policy_that_answers_out_of_range_later_fails_once_naming_it(installed, tmp_path, capsys):
+    path = spec(tmp_path, '["Still"]', "[method.Still]\nsettings = { answer = 7, after = 3 }\n")
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
+    assert "method 'Still': its policy answered 7; expected an action in 0..5" in failed[0]
+
+
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):
     with pytest.raises(ExperimentError, match="method 'Silent': declare `reads`"):
         from_dict({"kind": "compare", "methods": ["Silent"]}, "e.toml")
     with pytest.raises(ExperimentError, match="unknown method 'Nobody'; .* installed .*Walker"):
         from_dict({"kind": "compare", "methods": ["Nobody"]}, "e.toml")
+    # its table copied from a machine where a package provides it
+    with pytest.raises(ExperimentError, match="method.Nobody: unknown method 'Nobody': not built in, and no "
+                                              "installed package provides it .*Walker"):  # fmt: skip
+        from_dict(
+            {"kind": "compare", "methods": ["Nobody"], "method": {"Nobody": {"settings": {"k": 1}}}}, "e.toml"
+        )
     with pytest.raises(ExperimentError, match="settings {'speed': 3}: .*unexpected keyword"):
         walker = {"Walker": {"settings": {"speed": 3}}}
         from_dict({"kind": "compare", "methods": ["Walker"], "method": walker}, "e.toml")

@@ -538,6 +538,13 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     else:
         table = _table(table, where)
         _known(table, METHOD_KEYS, where, "")
+        if base is None and "kind" not in table and any(k in table for k in ("steps", "settings")):
+            # an installed method's table, with no package installed that provides it
+            raise ExperimentError(
+                f"{where}: unknown method {name!r}: not built in, and no installed package provides it "
+                f"(installed, entry points nirl_mj.methods: {', '.join(_installed()) or 'none'}: "
+                "docs/EXTENDING.md); or give the table a kind (docs/EXPERIMENTS.md)"
+            )
         default = base or MethodSpec(name, "irl")
         kind = _choice(table.get("kind", default.kind), METHOD_KINDS, f"{where}.kind")
         changes = _learner_changes(_table(table.get("config", {}), f"{where}.config"), f"{where}.config")

@@ -134,12 +134,22 @@ class _Budget:
     """The decisions left to all of a method's environments, and the arenas they drew."""
 
     def __init__(self, name: str, decisions: int, seed: int, test_seeds: frozenset[int]) -> None:
+        self.name, self.left, self.total, self.seed = name, decisions, decisions, seed
+        self._test_seeds = test_seeds
+
+    @functools.cached_property
+    def stream(self):
+        """The run's training arenas, drawn in order (``gym.wrappers.ArenaStream``): made when the
+        first environment is, so that a method that never drives needs no Gymnasium."""
         from nirl_mj.experiments.seeds import domain_seed
         from nirl_mj.gym.wrappers import ArenaStream
 
-        self.name, self.left, self.total = name, decisions, decisions
-        self.stream = ArenaStream(functools.partial(domain_seed, "train", seed))
-        self._test_seeds = test_seeds
+        return ArenaStream(functools.partial(domain_seed, "train", self.seed))
+
+    @property
+    def used(self) -> list[int]:
+        """The arenas the method's environments drew (none if it made none)."""
+        return list(self.stream.used) if "stream" in self.__dict__ else []
 
     def check_seed(self, seed: int | None) -> None:
         if seed is not None and int(seed) in self._test_seeds:
@@ -205,7 +215,11 @@ def checked_policy(name: str, policy: Any, example: np.ndarray) -> Callable[[np.
                           f"0..{N_ACTIONS - 1}")  # fmt: skip
 
     def act(phi: np.ndarray) -> int:
-        return int(np.asarray(policy(np.asarray(phi, np.float32))).reshape(-1)[0])
+        action = int(np.asarray(policy(np.asarray(phi, np.float32))).reshape(-1)[0])
+        if not 0 <= action < N_ACTIONS:
+            raise MethodError(f"method {name!r}: its policy answered {action}; expected an action in "
+                              f"0..{N_ACTIONS - 1}")  # fmt: skip
+        return action
 
     return act
 
@@ -229,7 +243,15 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     made = []
 
     def make_env():
-        made.append(protocol_env(job.task, budget, reads))
+        try:
+            made.append(protocol_env(job.task, budget, reads))
+        except ModuleNotFoundError as exc:
+            if exc.name != "gymnasium":
+                raise
+            raise MethodError(
+                f"method {job.method.name!r} drives the robot: its environments are Gymnasium's; "
+                "install the extra nirl-mj[gym] (pip install -e '.[gym]')"
+            ) from None
         return made[-1]
 
     try:
@@ -238,4 +260,4 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     finally:
         for env in made:
             env.close()
-    return checked_policy(job.method.name, policy, demos["observations"][0]), list(budget.stream.used)
+    return checked_policy(job.method.name, policy, demos["observations"][0]), budget.used

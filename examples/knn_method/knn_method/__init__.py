@@ -12,14 +12,14 @@ import numpy as np
 
 
 class KNN:
-    """Majority vote of the ``k`` demonstrated states nearest in standardised phi(s); ties go to the
-    nearest neighbour's action."""
+    """Majority vote of the ``k`` demonstrated states nearest in standardised phi(s); a tie goes to
+    the nearest neighbour's action if it is among the tied ones, else to the lowest tied action."""
 
     reads = ("demonstrations", "features")
     observation = "features"
 
     def __init__(self, k: int = 5) -> None:
-        if not isinstance(k, int) or k < 1:
+        if isinstance(k, bool) or not isinstance(k, int) or k < 1:
             raise TypeError(f"k = {k!r}: a whole number >= 1")
         self.k = k
 
