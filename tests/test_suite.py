@@ -145,6 +145,12 @@ def test_the_csv_rows_are_the_cells_results(training_suite):
     summary = json.loads((out / "results.json").read_text())
     rule = [p for p in summary["points"] if p["method"] == "rule"]
     assert all(p["flat"] for p in rule) and rule[0]["avg"] == rule[1]["avg"]
+    assert summary["reads"] == {"NIRL": ["demonstrations", "features", "episode_end"],
+                                "BC": ["demonstrations", "features"], "rule": ["features", "hand_written"],
+                                "expert": ["demonstrator"]}  # fmt: skip
+    board = out.parent / "suite-board"
+    assert main(["leaderboard", str(out), "--out", str(board)]) == 0
+    assert "| **reference:** features, hand_written |" in (board / "leaderboard.md").read_text()
     assert (out / "demonstrator.png").stat().st_size > 10_000
     assert "| BC |" in (out / "suite.md").read_text()
 
@@ -265,6 +271,9 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     assert merged == inputs  # rule is one computation in both: taken once, from the first
     table = (out / "leaderboard.md").read_text()
     assert table.index("| rule |") < table.index("| forward |") and (out / "leaderboard.png").is_file()
+    # what each reads, as its comparison recorded it; references in bold
+    assert "| BC | 2 |" in table and "| demonstrations, features | `" in table
+    assert "| **reference:** features, hand_written | `" in table and "| **reference:** hand_written | `" in table
     assert main(["leaderboard", str(a), "--out", str(out)]) == 2  # an earlier leaderboard: not replaced
     assert "pass --overwrite" in capsys.readouterr().err
     c = compared(tmp_path, "c", '["rule"]', "seed = 5\n")  # another protocol: other test arenas

@@ -42,7 +42,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     prepare,
 )
-from nirl_mj.experiments.reads import is_reference, method_reads
+from nirl_mj.experiments.reads import method_reads, reads_text
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
@@ -183,14 +183,6 @@ def terms_section() -> str:
         "demonstrations does not."
     )
     return textwrap.fill(text, 100, break_long_words=False, break_on_hyphens=False)
-
-
-def reads_text(reads: list[str] | None) -> str:
-    """A method's ``reads`` for a table cell; a reference's (it reads a task signal) in bold."""
-    if reads is None:  # a summary written before reads were recorded
-        return "?"
-    text = ", ".join(reads) or "nothing"
-    return f"**reference:** {text}" if is_reference(reads) else text
 
 
 def runs_section(summary: dict) -> str:

@@ -6,8 +6,8 @@ cells of its ``results.json``). The directories must share the protocol (:data:`
 tasks, seeds, tests, test domain, demonstrations and axes, hence the same test arenas run by run);
 a method found in two of them must be the same computation (its identity), and is taken once.
 Outputs in OUT: ``leaderboard.md`` (per point, the methods ranked by average success with its 95 %
-t interval, SPL, SCT, runs and source), ``leaderboard.csv`` (the merged tidy rows) and
-``leaderboard.png`` (the same as bars with their intervals).
+t interval, SPL, SCT, runs, what each reads, a reference in bold, and source), ``leaderboard.csv``
+(the merged tidy rows) and ``leaderboard.png`` (the same as bars with their intervals).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from pathlib import Path
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import ExperimentError
+from nirl_mj.experiments.reads import reads_text
 from nirl_mj.experiments.stats import summarise_runs
 
 PROTOCOL = ("kind", "task", "test_task", "seed", "tests", "test_domain", "expert", "demos", "demos_per_run",
@@ -60,6 +61,23 @@ def _rows_of_results(path: Path, identity: dict) -> list[dict]:
                               "--report) first") from None  # fmt: skip
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise ExperimentError(f"{path / 'results.json'}: its cells cannot be read ({exc!r})") from None
+
+
+def recorded_reads(path: str | Path) -> dict[str, list[str]]:
+    """What each method of a result directory reads, as its ``results.json`` records it (a
+    comparison's per method, a suite's under ``reads``); {} where it records none."""
+    try:
+        results = json.loads((Path(path) / "results.json").read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    if not isinstance(results, dict):
+        return {}
+    if isinstance(results.get("reads"), dict):
+        return results["reads"]
+    methods = results.get("methods")
+    if isinstance(methods, dict):
+        return {name: m["reads"] for name, m in methods.items() if isinstance(m, dict) and "reads" in m}
+    return {}
 
 
 def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
@@ -110,12 +128,16 @@ def points(rows: list[dict]) -> list[dict]:
 
 
 def markdown(summary: list[dict], source: dict[str, str]) -> str:
+    reads = {}
+    for directory in dict.fromkeys(source.values()):
+        recorded = recorded_reads(directory)
+        reads |= {name: recorded.get(name) for name, d in source.items() if d == directory}
     parts = []
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
         lines = [
-            "| rank | method | runs | success [95 % CI] | SPL | SCT | from |",
-            "|---|---|---|---|---|---|---|",
+            "| rank | method | runs | success [95 % CI] | SPL | SCT | reads | from |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)]
         for rank, p in enumerate(here, start=1):
@@ -124,7 +146,7 @@ def markdown(summary: list[dict], source: dict[str, str]) -> str:
             sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
             success = f"{100 * p['avg']:.1f}{band}"
             lines.append(f"| {rank} | {p['method']} | {p['runs']} | {success} | {p['spl']:.2f} | "
-                         f"{sct} | `{source[p['method']]}` |")  # fmt: skip
+                         f"{sct} | {reads_text(reads[p['method']])} | `{source[p['method']]}` |")  # fmt: skip
         parts.append(title + "\n".join(lines))
     return "\n\n".join(parts)
 

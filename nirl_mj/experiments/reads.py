@@ -93,6 +93,14 @@ def is_reference(reads: list[str]) -> bool:
     return any(w in TASK_SIGNALS for w in reads)
 
 
+def reads_text(reads: list[str] | None) -> str:
+    """A method's ``reads`` for a table cell; a reference's (it reads a task signal) in bold."""
+    if reads is None:  # a summary written before reads were recorded
+        return "?"
+    text = ", ".join(reads) or "nothing"
+    return f"**reference:** {text}" if is_reference(reads) else text
+
+
 def check_words(reads: list[str], where: str) -> None:
     """Raises ValueError naming ``where`` if ``reads`` holds a word outside :data:`VOCABULARY`."""
     unknown = [w for w in reads if w not in VOCABULARY]

@@ -46,6 +46,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     run_jobs,
 )
+from nirl_mj.experiments.reads import method_reads
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.experiments.suite_cells import (
     ANY,
@@ -214,7 +215,7 @@ def tidy_rows(experiment: Experiment, results: dict) -> list[dict]:
 def summarise(experiment: Experiment, rows: list[dict]) -> dict:
     """Per (axis, value, method): ``stats.summarise_runs`` over its runs, whether it is drawn as a
     horizontal line (it does not depend on a training axis), and the first method minus it,
-    paired by run (``paired``)."""
+    paired by run (``paired``); and what each method reads (``reads``: method -> words)."""
     points = []
     first = experiment.methods[0].name
     for axis in experiment.axes:
@@ -234,8 +235,10 @@ def summarise(experiment: Experiment, rows: list[dict]) -> dict:
                     "paired": None if method.name == first else paired(
                         [by_run[first][r]["success"] for r in both], [mine[r]["success"] for r in both]),
                 })  # fmt: skip
+    reads = {m.name: method_reads(m, experiment.config) for m in experiment.methods}
     return {"experiment": experiment.name, "description": experiment.description, "quick": experiment.quick,
-            "runs": experiment.runs, "tests": experiment.tests, "first": first, "points": points}  # fmt: skip
+            "runs": experiment.runs, "tests": experiment.tests, "first": first, "points": points,
+            "reads": reads}  # fmt: skip
 
 
 def json_line(summary: dict) -> str:
