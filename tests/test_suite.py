@@ -152,7 +152,9 @@ def test_the_csv_rows_are_the_cells_results(training_suite):
     assert main(["leaderboard", str(out), "--out", str(board)]) == 0
     assert "| **reference:** features, hand_written |" in (board / "leaderboard.md").read_text()
     assert (out / "demonstrator.png").stat().st_size > 10_000
-    assert "| BC |" in (out / "suite.md").read_text()
+    suite_md = (out / "suite.md").read_text()
+    assert "| BC |" in suite_md and "| demonstrations, features |" in suite_md
+    assert "| **reference:** features, hand_written |" in suite_md
 
 
 def test_the_expert_row_is_the_demonstrator_of_each_value(training_suite):

@@ -46,7 +46,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     run_jobs,
 )
-from nirl_mj.experiments.reads import method_reads
+from nirl_mj.experiments.reads import method_reads, reads_text
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.experiments.suite_cells import (
     ANY,
@@ -263,11 +263,14 @@ def _fewer(done: int, runs: int) -> str:
 
 
 def markdown_table(summary: dict, experiment: Experiment) -> str:
-    """Per axis: average success (percent) with its 95 % interval, a column per value."""
+    """Per axis: average success (percent) with its 95 % interval, a column per value; and what each
+    method reads, a reference in bold."""
     parts = []
+    reads = summary.get("reads", {})
     for axis in experiment.axes:
         names = [value_name(v) for v in axis.values]
-        lines = [f"| method | {axis.name} = " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+        lines = [f"| method | {axis.name} = " + " | ".join(names) + " | reads |",
+                 "|---|" + "---|" * (len(names) + 1)]  # fmt: skip
         for method in experiment.methods:
             found = {
                 p["value"]: p
@@ -275,6 +278,7 @@ def markdown_table(summary: dict, experiment: Experiment) -> str:
                 if p["axis"] == axis.name and p["method"] == method.name
             }
             cells = [_percent(found[n], experiment.runs) for n in names]
+            cells.append(reads_text(reads.get(method.name)))
             lines.append(f"| {method.name} | " + " | ".join(cells) + " |")
         parts.append("\n".join(lines))
     return "\n\n".join(parts)
