@@ -290,6 +290,25 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     assert "method BC of" in capsys.readouterr().err
 
 
+def test_the_leaderboard_reads_what_each_directory_recorded_and_nothing_from_a_damaged_file(tmp_path):
+    from nirl_mj.experiments.leaderboard import recorded_reads
+
+    cases = {
+        "compare": {"methods": {"BC": {"reads": ["demonstrations", "features"]}, "old": {"runs": 2}}},
+        "suite": {"reads": {"rule": ["features", "hand_written"], "bad": "features", "worse": [1]}},
+        "list": [1, 2],
+    }
+    for name, results in cases.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "results.json").write_text(json.dumps(results))
+    (tmp_path / "torn").mkdir()
+    (tmp_path / "torn" / "results.json").write_text('{"reads": {"rule": [')
+    assert recorded_reads(tmp_path / "compare") == {"BC": ["demonstrations", "features"]}
+    assert recorded_reads(tmp_path / "suite") == {"rule": ["features", "hand_written"]}
+    assert recorded_reads(tmp_path / "list") == recorded_reads(tmp_path / "torn") == {}
+    assert recorded_reads(tmp_path / "missing") == {}
+
+
 def test_the_example_method_joins_the_comparison_and_the_leaderboard_from_outside(tmp_path, capsys):
     """CI installs examples/knn_method (pip install -e): its method runs through compare by name."""
     from nirl_mj.experiments.plugins import discovered

@@ -72,12 +72,14 @@ def recorded_reads(path: str | Path) -> dict[str, list[str]]:
         return {}
     if not isinstance(results, dict):
         return {}
-    if isinstance(results.get("reads"), dict):
-        return results["reads"]
-    methods = results.get("methods")
-    if isinstance(methods, dict):
-        return {name: m["reads"] for name, m in methods.items() if isinstance(m, dict) and "reads" in m}
-    return {}
+    found = results.get("reads")
+    if not isinstance(found, dict) and isinstance(results.get("methods"), dict):
+        found = {name: m.get("reads") for name, m in results["methods"].items() if isinstance(m, dict)}
+    if not isinstance(found, dict):
+        return {}
+    # a damaged entry reads as unrecorded ("?"), never as words it does not hold
+    return {name: words for name, words in found.items()
+            if isinstance(words, list) and all(isinstance(w, str) for w in words)}  # fmt: skip
 
 
 def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
