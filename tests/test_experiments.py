@@ -656,6 +656,23 @@ def test_a_default_pinned_or_dropped_in_config_resumes_the_same_output(tmp_path)
         protocol.open_output(out, experiment(config="gamma = 0.5\n"))
 
 
+def test_a_method_whose_packages_are_missing_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(kinds.PACKAGES, "rl", ("gymnasium", "no_such_package_here"))
+    spec, out = (
+        write_spec(tmp_path, 'kind = "compare"\nruns = 1\ntests = 1\nmethods = ["rule", "PPO-reward"]\n'),
+        tmp_path / "out",
+    )
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert (
+        len(err) == 1
+        and "PPO-reward: need the optional extra nirl-mj[gym] (no module 'no_such_package_here')" in err[0]
+    )
+    assert not out.exists()  # refused before OUT was made
+    assert main(["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet",
+                 "--only", "rule"]) == 0  # fmt: skip
+
+
 def test_fig8_strip_is_written_from_the_first_run(tmp_path):
     head = ('kind = "compare"\ntest_task = "dynamic"\nruns = 2\ntests = 1\nmethods = ["rule"]\n'
             '[strip]\nmethod = "rule"\nsnapshots = 3\nwidth = 64\nheight = 48\n')  # fmt: skip

@@ -36,10 +36,19 @@ class Walker:
     reads = ("demonstrations", "features", "episode_end")
     observation = "features"
 
-    def __init__(self, action=0, episodes=2, arena=None, shape=None):
+    def __init__(self, action=0, episodes=2, arena=None, shape=None, forked=False):
         self.action, self.episodes, self.arena, self.shape = action, episodes, arena, shape
+        self.forked = forked
 
     def train(self, demonstrations, make_env, budget, seed, workdir):
+        if self.forked:  # environments in forked processes: the budget is copied without pickling
+            import gymnasium
+
+            vector = gymnasium.vector.AsyncVectorEnv([make_env, make_env], context="fork")
+            try:
+                vector.reset()
+            finally:
+                vector.close(terminate=True)
         env = make_env()
         seen = {"rewards": [], "infos": [], "shape": list(demonstrations["observations"].shape)}
         for _ in range(self.episodes):
@@ -153,6 +162,7 @@ def test_an_installed_method_runs_in_an_experiment_within_the_protocols_rules(in
         ("{ arena = TEST }", "method 'Walker' asked for arena TEST, one of its run's test arenas"),
         ("{ shape = 6 }", "method 'Walker': its policy answered an observation of shape (16,) with"),
         ("{ episodes = 50 }", "method 'Walker' drove more than its budget of 200 decisions"),
+        ("{ forked = true }", "method 'Walker': its environments run in this process (a process vector"),
     ],
 )
 def test_a_method_that_breaks_a_rule_fails_once_with_one_line_naming_it(
@@ -194,7 +204,7 @@ def test_a_policy_that_answers_out_of_range_later_fails_once_naming_it(installed
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
     failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
-    assert "method 'Still': its policy answered 7; expected an action in 0..5" in failed[0]
+    assert "method 'Still': its policy answered an observation of shape (16,) with array(7)" in failed[0]
 
 
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):

@@ -71,7 +71,7 @@ def run_compare(
     ``on_start(cells, already finished)`` and ``on_done(cell id, result, failure)`` report progress.
     """
     execution = execution or Execution()
-    execution.check_only(experiment)  # before anything is made in OUT
+    execution.check_methods(experiment)  # before anything is made in OUT
     if execution.reuse:
         from nirl_mj.experiments.reuse import read_old, reuse_cells
 

@@ -55,9 +55,9 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-PERMANENT = "MethodError: "
-"""A cell whose last error line holds this broke a method's rules (``experiments.plugins``): running it
-again cannot change that, so it is not retried."""
+PERMANENT = ("MethodError: ", "ModuleNotFoundError: ")
+"""A cell whose last error line holds one of these broke a method's rules (``experiments.plugins``) or
+needs a package that is not installed: running it again cannot change that, so it is not retried."""
 
 
 class ExecutorError(RuntimeError):
@@ -272,7 +272,7 @@ def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_do
                 if on_retry:
                     on_retry(cell.id, f"a worker process died while it ran beside others ({error}); "
                              "running it again alone, no attempt counted")  # fmt: skip
-            elif attempts[cell.id] <= retries and PERMANENT not in error:
+            elif attempts[cell.id] <= retries and not any(word in error for word in PERMANENT):
                 queue.append(cell)  # deterministic cells fail again; a lost process may not
                 if on_retry:
                     on_retry(

@@ -126,3 +126,14 @@ KINDS: dict[str, Callable[[Any, bool], Trained]] = {
     "plugin": _plugin,
 }
 """Every method kind (``definition.METHOD_KINDS``) and how it trains."""
+
+PACKAGES: dict[str, tuple[str, ...]] = {"rl": ("gymnasium", "stable_baselines3")}
+"""The optional extra's packages a kind needs (nirl-mj[gym]); the others need none, or (an installed
+method) only if they drive the robot."""
+
+
+def missing_packages(kind: str) -> list[str]:
+    """The packages method kind ``kind`` needs that are not installed."""
+    import importlib.util
+
+    return [p for p in PACKAGES.get(kind, ()) if importlib.util.find_spec(p) is None]

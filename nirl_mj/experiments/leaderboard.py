@@ -82,12 +82,13 @@ def recorded_reads(path: str | Path) -> dict[str, list[str]]:
             if isinstance(words, list) and all(isinstance(w, str) for w in words)}  # fmt: skip
 
 
-def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
-    """The merged tidy rows of ``dirs`` and each method's source directory; refuses directories of
-    another protocol and a method name that means two computations."""
+def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str], dict[str, list[str] | None]]:
+    """The merged tidy rows of ``dirs``, each method's source directory, and what each method reads
+    (:func:`recorded_reads`, from the first directory that records it; None if none does); refuses
+    directories of another protocol and a method name that means two computations."""
     if not dirs:
         raise ExperimentError("leaderboard: give at least one output directory")
-    rows, source, methods = [], {}, {}
+    rows, source, methods, reads = [], {}, {}, {}
     first_dir, first = None, None
     for d in dirs:
         identity, found = read_dir(d)
@@ -102,16 +103,19 @@ def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str]]:
             isinstance(m, dict) and "name" in m for m in methods_of
         ):
             raise ExperimentError(f"{d}/experiment.json: its methods cannot be read")
+        recorded = recorded_reads(d)
         for m in methods_of:
             name = m["name"]
             if name in methods and methods[name] != m:
                 raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name]} (settings "
                                       "differ): rename one of them in its experiment file")  # fmt: skip
+            if reads.get(name) is None:
+                reads[name] = recorded.get(name)
             if name in methods:
                 continue  # the same computation: taken from the first directory
             methods[name], source[name] = m, str(d)
             rows += [r for r in found if r["method"] == name]
-    return rows, source
+    return rows, source, reads
 
 
 def points(rows: list[dict]) -> list[dict]:
@@ -129,11 +133,7 @@ def points(rows: list[dict]) -> list[dict]:
     return out
 
 
-def markdown(summary: list[dict], source: dict[str, str]) -> str:
-    reads = {}
-    for directory in dict.fromkeys(source.values()):
-        recorded = recorded_reads(directory)
-        reads |= {name: recorded.get(name) for name, d in source.items() if d == directory}
+def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[str] | None]) -> str:
     parts = []
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
@@ -191,7 +191,7 @@ def write_leaderboard(
 ) -> tuple[str, list[Path]]:
     """Merges ``dirs`` into OUT (module docstring); returns the Markdown table and the files written.
     OUT must be new, empty, or (with ``overwrite``) an earlier leaderboard's."""
-    rows, source = merge(list(dirs))
+    rows, source, reads = merge(list(dirs))
     if not rows:
         raise ExperimentError(
             f"{', '.join(map(str, dirs))}: no finished run to rank (run the experiments first)"
@@ -205,7 +205,7 @@ def write_leaderboard(
             raise ExperimentError(f"{out} holds a leaderboard; pass --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
     summary = points(rows)
-    table = markdown(summary, source)
+    table = markdown(summary, source, reads)
     write_text(out / "leaderboard.md", f"# Leaderboard\n\nFrom: {', '.join(f'`{d}`' for d in dirs)}. Success "
                "averaged over each method's runs (95 % Student-t interval); the directories share their "
                f"protocol and test arenas.\n\n{table}\n\n![leaderboard](leaderboard.png)\n")  # fmt: skip

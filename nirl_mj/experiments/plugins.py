@@ -33,6 +33,7 @@ cell is not retried.
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
@@ -134,24 +135,27 @@ class _Budget:
     """The decisions left to all of a method's environments, and the arenas they drew."""
 
     def __init__(self, name: str, decisions: int, seed: int, test_seeds: frozenset[int]) -> None:
-        self.name, self.left, self.total, self.seed = name, decisions, decisions, seed
-        self._test_seeds = test_seeds
-
-    @functools.cached_property
-    def stream(self):
-        """The run's training arenas, drawn in order (``gym.wrappers.ArenaStream``): made when the
-        first environment is, so that a method that never drives needs no Gymnasium."""
         from nirl_mj.experiments.seeds import domain_seed
-        from nirl_mj.gym.wrappers import ArenaStream
+        from nirl_mj.gym.arena_stream import ArenaStream  # no Gymnasium: a method may never drive
 
-        return ArenaStream(functools.partial(domain_seed, "train", self.seed))
+        self.name, self.left, self.total = name, decisions, decisions
+        self.stream = ArenaStream(functools.partial(domain_seed, "train", seed))
+        self._test_seeds = test_seeds
+        self._process = os.getpid()
 
-    @property
-    def used(self) -> list[int]:
-        """The arenas the method's environments drew (none if it made none)."""
-        return list(self.stream.used) if "stream" in self.__dict__ else []
+    def _elsewhere(self) -> MethodError:
+        return MethodError(
+            f"method {self.name!r}: its environments run in this process (a process vector "
+            "environment would copy its budget and arenas); use a synchronous one"
+        )
+
+    def _here(self) -> None:
+        # a forked process vector environment copies the budget and the stream without pickling them
+        if os.getpid() != self._process:
+            raise self._elsewhere()
 
     def check_seed(self, seed: int | None) -> None:
+        self._here()
         if seed is not None and int(seed) in self._test_seeds:
             raise MethodError(
                 f"method {self.name!r} asked for arena {seed}, one of its run's test arenas: "
@@ -161,10 +165,10 @@ class _Budget:
     def __reduce__(self):
         # a process vector environment would copy the budget and the arena stream into each worker
         # (the budget multiplied, the same arenas drawn, none of them recorded here)
-        raise MethodError(f"method {self.name!r}: its environments run in this process (a process vector "
-                          "environment would copy its budget and arenas); use a synchronous one")  # fmt: skip
+        raise self._elsewhere()
 
     def spend(self) -> None:
+        self._here()
         if self.left <= 0:
             raise MethodError(f"method {self.name!r} drove more than its budget of {self.total} decisions")
         self.left -= 1
@@ -204,23 +208,21 @@ def checked_policy(name: str, policy: Any, example: np.ndarray) -> Callable[[np.
     if not callable(policy):
         raise MethodError(f"method {name!r}: train() returned {type(policy).__name__}, not a policy "
                           "(a callable observation -> action)")  # fmt: skip
-    answer = np.asarray(policy(example))
-    if (
-        answer.shape not in ((), (1,))
-        or not np.issubdtype(answer.dtype, np.integer)
-        or not (0 <= int(answer.reshape(-1)[0]) < N_ACTIONS)
-    ):
-        raise MethodError(f"method {name!r}: its policy answered an observation of shape {example.shape} "
-                          f"with {answer!r} (shape {answer.shape}); expected one action, an integer in "
-                          f"0..{N_ACTIONS - 1}")  # fmt: skip
 
     def act(phi: np.ndarray) -> int:
-        action = int(np.asarray(policy(np.asarray(phi, np.float32))).reshape(-1)[0])
-        if not 0 <= action < N_ACTIONS:
-            raise MethodError(f"method {name!r}: its policy answered {action}; expected an action in "
+        phi = np.asarray(phi, np.float32)
+        answer = np.asarray(policy(phi))
+        if (
+            answer.shape not in ((), (1,))
+            or not np.issubdtype(answer.dtype, np.integer)
+            or not (0 <= int(answer.reshape(-1)[0]) < N_ACTIONS)
+        ):
+            raise MethodError(f"method {name!r}: its policy answered an observation of shape {phi.shape} "
+                              f"with {answer!r} (shape {answer.shape}); expected one action, an integer in "
                               f"0..{N_ACTIONS - 1}")  # fmt: skip
-        return action
+        return int(answer.reshape(-1)[0])
 
+    act(example)  # refused before the tests start
     return act
 
 
@@ -248,9 +250,11 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
         except ModuleNotFoundError as exc:
             if exc.name != "gymnasium":
                 raise
-            raise MethodError(
+            # a missing package: the executor does not retry it (experiments.executors)
+            raise ModuleNotFoundError(
                 f"method {job.method.name!r} drives the robot: its environments are Gymnasium's; "
-                "install the extra nirl-mj[gym] (pip install -e '.[gym]')"
+                "install the extra nirl-mj[gym] (pip install -e '.[gym]')",
+                name="gymnasium",
             ) from None
         return made[-1]
 
@@ -260,4 +264,4 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     finally:
         for env in made:
             env.close()
-    return checked_policy(job.method.name, policy, demos["observations"][0]), budget.used
+    return checked_policy(job.method.name, policy, demos["observations"][0]), list(budget.stream.used)

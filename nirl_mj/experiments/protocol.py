@@ -340,12 +340,24 @@ class Execution:
             log=log,
         )
 
-    def check_only(self, experiment: Experiment) -> None:
-        """Refuses an ``--only`` name that is not a method of ``experiment``."""
+    def check_methods(self, experiment: Experiment) -> None:
+        """Refuses an ``--only`` name that is not a method of ``experiment``, and a method to be run
+        without the optional packages its kind needs (``kinds.PACKAGES``)."""
+        from nirl_mj.experiments.kinds import missing_packages
+
         unknown = sorted(set(self.only) - {m.name for m in experiment.methods})
         if unknown:
             raise ExperimentError(f"--only {', '.join(unknown)}: not a method of {experiment.name} "
                                   f"({', '.join(m.name for m in experiment.methods)})")  # fmt: skip
+        if self.report_only:
+            return
+        run = [m for m in experiment.methods if not self.only or m.name in self.only]
+        short = {m.name: missing_packages(m.kind) for m in run}
+        names = [name for name, missing in short.items() if missing]
+        if names:
+            raise ExperimentError(f"{', '.join(names)}: need the optional extra nirl-mj[gym] (no module "
+                                  f"{short[names[0]][0]!r}): pip install -e '.[gym]', or run the other "
+                                  "methods with --only")  # fmt: skip
 
     def check_output(self, out: str | Path) -> None:
         """With ``report_only``, OUT must hold a started experiment: there is nothing to report else."""

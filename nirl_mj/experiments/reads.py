@@ -2,9 +2,10 @@
 
 A learner from demonstrations reads the demonstrations, phi(s) and that its own episodes ended;
 never the task's reward, outcome or success, in training or in selecting a policy. A method
-that reads more is a reference, and its record says so. Every training run's ``run.json`` and
-every method of a compare or main-job ``results.json`` carries a ``reads`` list of
-:data:`VOCABULARY` words, computed here from the method's settings. tests/test_information_budget.py
+that reads more is a reference, and its record says so. Every training run's ``run.json``,
+every method of a compare or main-job ``results.json`` and a suite's ``results.json`` (under
+``reads``, by method) carry a ``reads`` list of :data:`VOCABULARY` words, computed here from the
+method's settings. tests/test_information_budget.py
 checks the IRL loop's lists against what it touches: rollouts whose outcomes are swapped and whose
 poses and target are redrawn (all that the task's reward is computed from) leave a learner that
 does not read them in the same state, bit for bit.

@@ -196,8 +196,9 @@ def _environment(task: specs.TaskSpec, seed: int, first_episode: int, envs: int 
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
+    from nirl_mj.gym.arena_stream import ArenaStream
     from nirl_mj.gym.env import NavigationEnv
-    from nirl_mj.gym.wrappers import ArenaSeeds, ArenaStream
+    from nirl_mj.gym.wrappers import ArenaSeeds
 
     stream = ArenaStream(lambda k: domain_seed("train", seed, k), start=first_episode)
     box = gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)

@@ -90,7 +90,7 @@ def run_suite(
     from nirl_mj.experiments.executors import default_workers
 
     execution = execution or Execution()
-    execution.check_only(experiment)  # before anything is made in OUT
+    execution.check_methods(experiment)  # before anything is made in OUT
     _at_points(experiment, execution)  # a bad --points too
     if execution.reuse:
         raise ExperimentError("--reuse takes cells of compare experiments only")

@@ -6,21 +6,7 @@ from collections.abc import Callable
 
 import gymnasium
 
-
-class ArenaStream:
-    """The arenas of a learner's training: the k-th draw (k from ``start``) is ``arena_seed(k)``,
-    whichever of several environments asks for it, and every draw is remembered in :attr:`used`."""
-
-    def __init__(self, arena_seed: Callable[[int], int], start: int = 0) -> None:
-        self._arena_seed = arena_seed
-        self._next = start
-        self.used: list[int] = []
-
-    def draw(self) -> int:
-        seed = self._arena_seed(self._next)
-        self._next += 1
-        self.used.append(seed)
-        return seed
+from nirl_mj.gym.arena_stream import ArenaStream
 
 
 class ArenaSeeds(gymnasium.Wrapper):
