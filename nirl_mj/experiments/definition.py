@@ -511,8 +511,7 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
         if name not in defined and name not in BUILTIN_METHODS and name not in _installed():
             raise ExperimentError(
                 f"{where('methods')}: unknown method {name!r}; built in: {', '.join(BUILTIN_METHODS)}; "
-                f"installed (entry points nirl_mj.methods): {', '.join(_installed()) or 'none'}; "
-                "or define it in a [method.NAME] table"
+                f"{_installed_text()}; or define it in a [method.NAME] table"
             )
         out.append(_method(name, defined.get(name), config, f"{where('method')}.{name}"))
     if len(set(names)) != len(names):
@@ -529,6 +528,11 @@ def _installed() -> dict:
     return discovered()
 
 
+def _installed_text() -> str:
+    """The installed methods, for an error that names a method no package provides."""
+    return f"installed (entry points nirl_mj.methods): {', '.join(_installed()) or 'none'}"
+
+
 def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     base = BUILTIN_METHODS.get(name)
     if base is None and name in _installed():
@@ -542,8 +546,7 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
             # an installed method's table, with no package installed that provides it
             raise ExperimentError(
                 f"{where}: unknown method {name!r}: not built in, and no installed package provides it "
-                f"(installed, entry points nirl_mj.methods: {', '.join(_installed()) or 'none'}: "
-                "docs/EXTENDING.md); or give the table a kind (docs/EXPERIMENTS.md)"
+                f"(docs/EXTENDING.md); {_installed_text()}; or give the table a kind (docs/EXPERIMENTS.md)"
             )
         default = base or MethodSpec(name, "irl")
         kind = _choice(table.get("kind", default.kind), METHOD_KINDS, f"{where}.kind")
@@ -593,12 +596,12 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
 
         if not method.plugin:
             raise ExperimentError(
-                f'{where}: kind = "plugin" needs plugin = the name of an installed method '
-                f"(entry points nirl_mj.methods): {', '.join(_installed()) or 'none'}"
+                f'{where}: kind = "plugin" needs plugin = the name of an installed method; '
+                f"{_installed_text()}"
             )
         if method.plugin not in _installed():
             raise ExperimentError(f"{where}: plugin = {method.plugin!r}: no installed package provides it; "
-                                  f"installed: {', '.join(_installed()) or 'none'}")  # fmt: skip
+                                  f"{_installed_text()}")  # fmt: skip
         try:
             declared = load_method(method.plugin, method.settings).reads  # declarations, settings checked now
         except SpecError as exc:
