@@ -8,7 +8,9 @@ the experiment has 18 x 25 of them; the short run's tail (a worker idle while th
 last cell finishes) is multiplied too, so the projection errs on the long side.
 With ``--existing DIR``, it also reads the cell times of a finished
 (or partial) ``nirl-mj compare`` directory: the core time the real protocol took.
-Target (issue #6): the full protocol within 90 minutes on a 2-core machine.
+Target (issue #6): the full protocol within 90 minutes on a 2-core machine; issue 31 set 5 hours for
+its fair protocol (more methods, 50,000-decision reinforcement learners). ``--section`` names the
+section written, so that another machine's figures can stand beside the first.
 With ``--existing-only`` it times nothing new and reports the existing directory's cells alone,
 with the core-minutes per run of each method and how many 2-core machines would bring the
 25-run protocol under 15 minutes: every cell is independent, so with M machines the wall time is
@@ -19,6 +21,7 @@ Writes docs/PERFORMANCE.md.
     python bench/bench_table1.py [--runs 2] [--workers 2] [--existing runs/table1] [--quick]
     python bench/bench_table1.py --existing runs/table1 --existing-only [--efficiency 1.0]
     python bench/bench_table1.py --existing runs/table1 --existing-only --window-until ISO [--window-dir DIR]
+    python bench/bench_table1.py --existing runs/t1 --existing-only --section "Table I protocol, runs 0-1"
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ except ImportError:  # run as a module
     from bench.report import markdown_table, write_section
 
 TARGET_MIN = 90.0
+SECTION = "Table I protocol"
 
 
 def cell_seconds(out: Path) -> dict[str, list[float]]:
@@ -135,6 +139,9 @@ def main() -> None:
                         help="with --existing-only: measure the scaling on the cells of --window-dir "
                         "(default --existing) finished by then (UTC), instead of --efficiency")  # fmt: skip
     parser.add_argument("--window-dir", type=Path, default=None, help="see --window-until")
+    parser.add_argument("--section", default=SECTION, metavar="TITLE",
+                        help="the section of docs/PERFORMANCE.md to write (another machine's figures "
+                             "beside the first, say)")  # fmt: skip
     args = parser.parse_args()
     if args.runs < 1 or args.workers < 1:
         parser.error(f"--runs {args.runs} --workers {args.workers}: both must be at least 1")
@@ -152,7 +159,7 @@ def main() -> None:
         body += f"\n\n{measured}" if measured else ""
         print(body)
         if not args.no_write:
-            write_section("Table I protocol (bench/bench_table1.py)", body)
+            write_section(f"{args.section} (bench/bench_table1.py)", body)
         return
 
     full = load_experiment("table1", quick=args.quick)
@@ -198,7 +205,7 @@ def main() -> None:
     body = "\n".join(lines)
     print(body)
     if not (args.no_write or args.quick):
-        write_section("Table I protocol (bench/bench_table1.py)", body)
+        write_section(f"{args.section} (bench/bench_table1.py)", body)
 
 
 if __name__ == "__main__":

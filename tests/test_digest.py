@@ -59,6 +59,7 @@ import numpy as np
 import pytest
 
 from nirl_mj.cli import main
+from nirl_mj.experiments.machine import platform_key
 
 TINY_TASK = [
     "--set", "arena.size=[24.0, 24.0]", "--set", "arena.start=[4.0, 4.0]",
@@ -73,18 +74,7 @@ PINNED = {
     "AuthenticAMD/AVX2": "3fffecc677e6778d85cee2fb802dea4b7807a6de4ce67459fa7b88eb81b5bda9",
     "AuthenticAMD/AVX512": "dc235785a736ad3d6008841a840ca023ca312de39b9a73fc2f378eef1bce558b",
 }
-"""The digest by platform (:func:`platform_key`)."""
-
-
-def platform_key() -> str:
-    """The CPU's vendor and torch's CPU capability: what the bits were seen to depend on."""
-    import torch
-
-    lines = Path("/proc/cpuinfo").read_text().splitlines() if Path("/proc/cpuinfo").is_file() else []
-    vendor = next(
-        (line.split(":", 1)[1].strip() for line in lines if line.startswith("vendor_id")), "unknown"
-    )
-    return f"{vendor}/{torch.backends.cpu.get_cpu_capability()}"
+"""The digest by platform (:func:`nirl_mj.experiments.machine.platform_key`)."""
 
 
 def _arrays_digest(h, path: Path) -> None:

@@ -121,6 +121,35 @@ def test_every_relative_link_leads_to_a_file_and_its_heading(page):
     assert broken == []
 
 
+def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path):
+    """docs/scripts/reproduce_cells.py on hand-built cells: equal results are identical, a metric the
+    published cell predates is named but not a difference, a changed success is, and restored or
+    reused cells (computed nowhere here) are not reported."""
+    import json
+
+    report = runpy.run_path(str(ROOT / "docs" / "scripts" / "reproduce_cells.py"))["report"]
+    result = {"success_rate": 0.84, "spl": 0.81, "sct": 0.8}
+    published = {
+        "A-run000": dict(result),
+        "B-run000": {"success_rate": 0.84, "spl": 0.81},
+        "C-run000": {**result, "success_rate": 0.77, "spl": 0.74},
+        "D-run000": dict(result),
+    }
+    (tmp_path / "cells").mkdir()
+    cells = {"A-run000": {}, "B-run000": {}, "C-run000": {}, "D-run000": {"restored_from": "x"}}
+    for name, extra in cells.items():
+        cell = {"id": name, "result": result, **extra}
+        (tmp_path / "cells" / f"{name}.json").write_text(json.dumps(cell))
+    lines = report(tmp_path, published).splitlines()
+    assert lines[:3] == [
+        "A-run000: identical",
+        "B-run000: identical; keys: sct (not published)",
+        "C-run000: differs (success 84 % against the published 77 %, SPL 0.81 against 0.74); "
+        "keys: success_rate, spl",
+    ]
+    assert lines[3].startswith("2 identical, 1 differ; platform ") and len(lines) == 4
+
+
 def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
     """docs/scripts/paired_runs.py on Table I's stored results: NIRL minus another equals the stored
     paired figure; the order of the two flips its sign; an unknown method is refused."""
