@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import platform
 import re
+import shlex
 import subprocess
 import sys
 from datetime import UTC, datetime
@@ -51,7 +52,7 @@ def write_section(name: str, body: str) -> None:
     """Replaces (or appends) the section ``## name`` with ``body`` plus machine, date and command."""
     stamp = (
         f"Machine: {machine()}. Date: {datetime.now(UTC):%Y-%m-%d %H:%M} UTC. Commit: {git_commit()}.\n"
-        f"Command: `{' '.join(['python', *sys.argv])}`\n\n"
+        f"Command: `{shlex.join(['python', *sys.argv])}`\n\n"
     )
     section = f"## {name}\n\n{stamp}{body.strip()}\n"
     text = PERFORMANCE_MD.read_text() if PERFORMANCE_MD.exists() else _HEADER

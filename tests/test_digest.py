@@ -46,7 +46,7 @@ machine was not measured at this commit: on a platform with no pinned digest the
 and prints the digest to pin, after checking that the last commit it passed at gives that
 platform's previous digest (or, with none, that the change is the one meant).
 Pinned on 2026-11-29 for a second platform, an AMD EPYC machine whose torch CPU capability is AVX512:
-a7826ef, the last commit whose CI passed the AVX2 digest, gives dc23578... there; no result changed.
+a7826ef, whose CI on the AVX2 machine passed its digest, gives dc23578... there; no result changed.
 """
 
 from __future__ import annotations

@@ -122,32 +122,61 @@ def test_every_relative_link_leads_to_a_file_and_its_heading(page):
 
 
 def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path):
-    """docs/scripts/reproduce_cells.py on hand-built cells: equal results are identical, a metric the
-    published cell predates is named but not a difference, a changed success is, and restored or
-    reused cells (computed nowhere here) are not reported."""
+    """docs/scripts/reproduce_cells.py on hand-built cells: equal results are identical; a metric the
+    published cell predates is named but is no difference, one the new cell lacks is; a changed
+    success is, with the run's selected iteration and its ties; restored, reused and unpublished
+    cells are counted apart; a directory with nothing to compare is refused."""
     import json
 
     report = runpy.run_path(str(ROOT / "docs" / "scripts" / "reproduce_cells.py"))["report"]
-    result = {"success_rate": 0.84, "spl": 0.81, "sct": 0.8}
+    result = {"method": "M", "run": 0, "success_rate": 0.84, "spl": 0.81, "sct": 0.8}
     published = {
         "A-run000": dict(result),
-        "B-run000": {"success_rate": 0.84, "spl": 0.81},
+        "B-run000": {k: v for k, v in result.items() if k != "sct"},
         "C-run000": {**result, "success_rate": 0.77, "spl": 0.74},
-        "D-run000": dict(result),
+        "D-run000": {**result, "tests": 100},
+        "E-run000": dict(result),
+        "F-run000": dict(result),
     }
     (tmp_path / "cells").mkdir()
-    cells = {"A-run000": {}, "B-run000": {}, "C-run000": {}, "D-run000": {"restored_from": "x"}}
-    for name, extra in cells.items():
-        cell = {"id": name, "result": result, **extra}
-        (tmp_path / "cells" / f"{name}.json").write_text(json.dumps(cell))
+    extras = {
+        "A": {},
+        "B": {},
+        "C": {},
+        "D": {},
+        "E": {"restored_from": "x"},
+        "F": {"reused_from": "y"},
+        "G": {},
+    }
+    for name, extra in extras.items():
+        cell = {"id": f"{name}-run000", "result": result, **extra}
+        (tmp_path / "cells" / f"{name}-run000.json").write_text(json.dumps(cell))
+    run = tmp_path / "runs" / "M" / "0"
+    run.mkdir(parents=True)
+    (run / "run.json").write_text(
+        json.dumps({"selection": {"rule": "demo_balanced"}, "selected_iteration": 2})
+    )
+    scores = [0.5, 0.7, 0.7, 0.6]
+    (run / "metrics.jsonl").write_text(
+        "".join(json.dumps({"episode": e, "demo_balanced_accuracy": s}) + "\n" for e, s in enumerate(scores))
+    )
     lines = report(tmp_path, published).splitlines()
-    assert lines[:3] == [
+    assert lines[:4] == [
         "A-run000: identical",
         "B-run000: identical; keys: sct (not published)",
-        "C-run000: differs (success 84 % against the published 77 %, SPL 0.81 against 0.74); "
-        "keys: success_rate, spl",
+        "C-run000: differs (success 84 %, SPL 0.81 against the published success 77 %, SPL 0.74; "
+        "selected iteration 2, one of 2 at its score); keys: success_rate, spl",
+        "D-run000: differs (success 84 %, SPL 0.81 against the published success 84 %, SPL 0.81; "
+        "selected iteration 2, one of 2 at its score); keys: tests (not computed)",
     ]
-    assert lines[3].startswith("2 identical, 1 differ; platform ") and len(lines) == 4
+    assert lines[4].startswith(
+        "2 identical, 2 differ; left out: 2 restored or reused, 1 not published; run on "
+    )
+    assert len(lines) == 5
+    for name in "ABCD":
+        (tmp_path / "cells" / f"{name}-run000.json").unlink()
+    with pytest.raises(SystemExit, match="no cell to compare .2 restored or reused, 1 not in the published"):
+        report(tmp_path, published)
 
 
 def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():

@@ -7,7 +7,8 @@ from pathlib import Path
 
 def platform_key() -> str:
     """The CPU's vendor and torch's CPU capability (``"AuthenticAMD/AVX2"``, say): the same code and
-    seeds gave other bits where these differ (tests/test_digest.py), never where they agreed."""
+    seeds gave other bits on AVX2 and AVX512 machines (tests/test_digest.py). Library versions and
+    builds matter too and are not in the key: pinned versions keep them apart."""
     import torch
 
     cpuinfo = Path("/proc/cpuinfo")
