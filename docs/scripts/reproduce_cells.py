@@ -48,13 +48,14 @@ def selection_text(run: Path) -> str:
         record = json.loads((run / "run.json").read_text())
         metric = SELECTION_METRIC[record["selection"]["rule"]]
         rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines() if line]
+        chosen = record["selected_iteration"]
     except (OSError, KeyError, TypeError, ValueError):
         return ""
-    chosen = record["selected_iteration"]
-    best = next((row[metric] for row in rows if row.get("episode") == chosen), None)
+    best = next((row.get(metric) for row in rows if row.get("episode") == chosen), None)
     if best is None:
         return ""
-    return f"; selected iteration {chosen}, one of {sum(row[metric] == best for row in rows)} at its score"
+    ties = sum(row.get(metric) == best for row in rows)
+    return f"; selected iteration {chosen}, one of {ties} at its score"
 
 
 def rates(result: dict) -> str:
