@@ -125,7 +125,8 @@ def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path
     """docs/scripts/reproduce_cells.py on hand-built cells: equal results are identical; a metric the
     published cell predates is named but is no difference, one the new cell lacks is; a changed
     success is, with the run's selected iteration and its ties; restored, reused and unpublished
-    cells are counted apart; a directory with nothing to compare is refused."""
+    cells are counted apart; the platforms the cells recorded are named; a directory with nothing to
+    compare is refused."""
     import json
 
     report = runpy.run_path(str(ROOT / "docs" / "scripts" / "reproduce_cells.py"))["report"]
@@ -140,7 +141,7 @@ def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path
     }
     (tmp_path / "cells").mkdir()
     extras = {
-        "A": {},
+        "A": {"platform": "Vendor/AVX9"},
         "B": {},
         "C": {},
         "D": {},
@@ -170,7 +171,8 @@ def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path
         "selected iteration 2, one of 2 at its score); keys: tests (not computed)",
     ]
     assert lines[4].startswith(
-        "2 identical, 2 differ; left out: 2 restored or reused, 1 not published; run on "
+        "2 identical, 2 differ; left out: 2 restored or reused, 1 not published; "
+        "computed on Vendor/AVX9, not recorded; run on "
     )
     assert len(lines) == 5
     for name in "ABCD":

@@ -29,6 +29,7 @@ from nirl_mj.experiments.definition import (
     load_experiment,
 )
 from nirl_mj.experiments.executors import Cell, CellStore, Executor, ExecutorError, run_cells
+from nirl_mj.experiments.machine import platform_key
 from nirl_mj.experiments.stats import paired, summarise_runs, t_interval, wilson
 from nirl_mj.learn.config import LearnerConfig
 
@@ -308,7 +309,8 @@ def test_failing_cell_is_retried_then_reported_and_never_stored(tmp_path, execut
     assert failure.error == "ValueError: broken attempt 3 failed on purpose"
     assert "Traceback" in failure.traceback
     assert sorted(seen) == [("broken", False), ("flaky", True)]
-    assert json.loads(store.path("flaky").read_text())["attempts"] == 2
+    stored = json.loads(store.path("flaky").read_text())
+    assert stored["attempts"] == 2 and stored["platform"] == platform_key()  # the worker's machine
     assert not store.path("broken").exists()  # the next run tries it again
     again = run_cells(cells, executor, workers=2, retries=0, store=store)
     assert again.reused == ["flaky"] and list(again.failures) == ["broken"]

@@ -4,9 +4,9 @@ result equals the published cell's key for key; where it does not, the success (
 both and, for a run of the IRL loop, its selected iteration and how many iterations shared its score
 (the tie rule acts only then). A key only the new cell has (SCT, which cells computed before it
 lack) is named but is no difference; a key only the published cell has is one. The cells left out
-are counted; with none compared it exits with an error. It ends with the machine that runs it (the
-vendor and torch's CPU capability, ``nirl_mj.experiments.machine``): cells do not record theirs, so
-run it on the machine that computed DIRECTORY. Writes nothing but ``--out`` (the report, after a
+are counted; with none compared it exits with an error. It ends with the platforms (the vendor and
+torch's CPU capability, ``nirl_mj.experiments.machine``) the compared cells recorded (cells stored
+before 2026-11-29 record none) and the one running it. Writes nothing but ``--out`` (the report, after a
 line with the command, date and commit).
 
     python docs/scripts/reproduce_cells.py DIRECTORY PUBLISHED_RESULTS_JSON [--out FILE]
@@ -65,12 +65,9 @@ def rates(result: dict) -> str:
 
 
 def report(directory: Path, published: dict) -> str:
-    """One line per recomputed cell of ``directory``, then the counts and the machine running this."""
-    lines, counts, left_out = (
-        [],
-        {"identical": 0, "differs": 0},
-        {"restored or reused": 0, "not published": 0},
-    )
+    """One line per recomputed cell of ``directory``, then the counts and the platforms."""
+    lines, counts, platforms = [], {"identical": 0, "differs": 0}, set()
+    left_out = {"restored or reused": 0, "not published": 0}
     for path in sorted((directory / "cells").glob("*.json")):
         cell = json.loads(path.read_text())
         if "restored_from" in cell or "reused_from" in cell:
@@ -80,6 +77,7 @@ def report(directory: Path, published: dict) -> str:
             left_out["not published"] += 1
             continue
         new, old = cell["result"], published[cell["id"]]
+        platforms.add(cell.get("platform", "not recorded"))
         verdict, keys = compare_cell(new, old)
         counts[verdict] += 1
         line = f"{cell['id']}: {verdict}"
@@ -93,7 +91,7 @@ def report(directory: Path, published: dict) -> str:
     lines.append(
         f"{counts['identical']} identical, {counts['differs']} differ; left out: "
         f"{left_out['restored or reused']} restored or reused, {left_out['not published']} not published; "
-        f"run on {platform_key()}, torch {torch.__version__}"
+        f"computed on {', '.join(sorted(platforms))}; run on {platform_key()}, torch {torch.__version__}"
     )
     return "\n".join(lines)
 

@@ -104,7 +104,9 @@ class Report:
 
 
 class CellStore:
-    """Finished cells as ``DIR/<id>.json`` files: ``{"id", "result", "seconds", "attempts"}``."""
+    """Finished cells as ``DIR/<id>.json`` files: ``{"id", "result", "seconds", "attempts", "platform"}``
+    (``platform``: the machine that computed the cell, :func:`nirl_mj.experiments.machine.platform_key`,
+    whose bits a result depends on; cells stored before it was recorded lack it)."""
 
     def __init__(self, directory: str | Path, check: Callable[[Any], str | None] | None = None) -> None:
         self.directory = Path(directory)
@@ -125,24 +127,30 @@ class CellStore:
             return None
         return result
 
-    def save(self, cell_id: str, result: Any, seconds: float, attempts: int) -> None:
+    def save(self, cell_id: str, result: Any, seconds: float, attempts: int, platform: str = "") -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         record = {"id": cell_id, "result": result, "seconds": round(seconds, 3), "attempts": attempts}
+        if platform:
+            record["platform"] = platform
         write_text(self.path(cell_id), json.dumps(record, indent=1))
 
 
-def call_cell(fn: Callable[..., Any], args: tuple) -> tuple[str, str, float]:
-    """Runs one cell where it is sent; returns ("ok", result as JSON, seconds) or
-    ("error", traceback, seconds). Errors travel as text: not every exception pickles."""
+def call_cell(fn: Callable[..., Any], args: tuple) -> tuple[str, str, float, str]:
+    """Runs one cell where it is sent; returns ("ok", result as JSON, seconds, platform) or
+    ("error", traceback, seconds, platform), the platform being the worker's machine's
+    (:func:`nirl_mj.experiments.machine.platform_key`). Errors travel as text: not every exception
+    pickles."""
     import torch
+
+    from nirl_mj.experiments.machine import platform_key
 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # the same arithmetic whatever the executor (see the module doc)
     start = time.perf_counter()
     try:
-        return "ok", json.dumps(fn(*args)), time.perf_counter() - start
+        return "ok", json.dumps(fn(*args)), time.perf_counter() - start, platform_key()
     except Exception:
-        return "error", traceback.format_exc(), time.perf_counter() - start
+        return "error", traceback.format_exc(), time.perf_counter() - start, platform_key()
     finally:
         torch.set_num_threads(threads)
 
@@ -253,12 +261,12 @@ def _drive(backend, todo: list[Cell], retries: int, store, report: Report, on_do
             in_flight[backend.submit(cell)] = cell
             if alone:
                 break
-        for handle, (status, payload, seconds) in backend.wait_some(list(in_flight)):
+        for handle, (status, payload, seconds, platform) in backend.wait_some(list(in_flight)):
             cell = in_flight.pop(handle)
             if status == "ok":
                 result = json.loads(payload)
                 if store:
-                    store.save(cell.id, result, seconds, attempts[cell.id])
+                    store.save(cell.id, result, seconds, attempts[cell.id], platform)
                 report.results[cell.id], report.seconds[cell.id] = result, seconds
                 report.computed.append(cell.id)
                 if on_done:
@@ -354,7 +362,7 @@ class _Local:
             try:
                 out.append((future, future.result()))
             except (BrokenProcessPool, CancelledError) as exc:  # a worker died (killed, out of memory)
-                out.append((future, ("lost", f"{type(exc).__name__}: a worker process died: {exc}", 0.0)))
+                out.append((future, ("lost", f"{type(exc).__name__}: a worker process died: {exc}", 0.0, "")))
                 self._discard(pool)  # only the broken pool: a replacement started meanwhile stays
         return out
 
@@ -403,7 +411,7 @@ class _Ray:
             try:
                 out.append((ref, self.ray.get(ref)))
             except self.ray.exceptions.RayError as exc:  # a worker or node was lost
-                out.append((ref, ("error", f"{type(exc).__name__}: {exc}", 0.0)))
+                out.append((ref, ("error", f"{type(exc).__name__}: {exc}", 0.0, "")))
         return out
 
     def close(self) -> None:
