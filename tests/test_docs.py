@@ -172,7 +172,7 @@ def test_reproduce_cells_tells_a_missing_metric_from_a_different_result(tmp_path
     ]
     assert lines[4].startswith(
         "2 identical, 2 differ; left out: 2 restored or reused, 1 not published; "
-        "computed on Vendor/AVX9, not recorded; run on "
+        "computed on (not recorded), Vendor/AVX9; run on "
     )
     assert len(lines) == 5
     for name in "ABCD":

@@ -77,7 +77,7 @@ def report(directory: Path, published: dict) -> str:
             left_out["not published"] += 1
             continue
         new, old = cell["result"], published[cell["id"]]
-        platforms.add(cell.get("platform", "not recorded"))
+        platforms.add(cell.get("platform", "(not recorded)"))
         verdict, keys = compare_cell(new, old)
         counts[verdict] += 1
         line = f"{cell['id']}: {verdict}"
