@@ -104,7 +104,11 @@ def main() -> None:
     args = parser.parse_args()
     if not (args.directory / "cells").is_dir():
         parser.error(f"{args.directory}: not a `nirl-mj compare` directory (no cells/ in it)")
-    text = report(args.directory, json.loads(args.published.read_text())["cells"])
+    try:
+        published = json.loads(args.published.read_text())["cells"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        parser.error(f"{args.published}: not a published results.json with cells ({exc!r})")
+    text = report(args.directory, published)
     print(text)
     if args.out:
         commit = subprocess.run(["git", "describe", "--always", "--dirty=+uncommitted"],

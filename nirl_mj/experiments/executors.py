@@ -144,13 +144,13 @@ def call_cell(fn: Callable[..., Any], args: tuple) -> tuple[str, str, float, str
 
     from nirl_mj.experiments.machine import platform_key
 
-    threads = torch.get_num_threads()
+    threads, where = torch.get_num_threads(), platform_key()
     torch.set_num_threads(1)  # the same arithmetic whatever the executor (see the module doc)
     start = time.perf_counter()
     try:
-        return "ok", json.dumps(fn(*args)), time.perf_counter() - start, platform_key()
+        return "ok", json.dumps(fn(*args)), time.perf_counter() - start, where
     except Exception:
-        return "error", traceback.format_exc(), time.perf_counter() - start, platform_key()
+        return "error", traceback.format_exc(), time.perf_counter() - start, where
     finally:
         torch.set_num_threads(threads)
 
