@@ -35,6 +35,11 @@ def make_env(task="navigate", seed=None):
 
 __all__ = ["make_env", "__version__"]
 
+# The task file's rules, registered with the dataset reader (nirl_mj.data.dataset.TASK_RULES; the data
+# layer cannot import the simulation's), so that every reader of a dataset checks its task records,
+# the Gymnasium extra installed or not. Costs the task specs' import (~0.1 s), no simulator.
+from nirl_mj.sim import spec as _spec  # noqa: E402, F401
+
 # Gymnasium ids (nirl_mj/Navigate-v0, ...) whenever the optional extra is installed: Gymnasium 1.x
 # finds an id only once registered. Costs Gymnasium's import (~70 ms), no simulator.
 try:

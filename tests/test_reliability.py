@@ -328,11 +328,14 @@ def test_a_resume_of_a_training_that_had_not_started_says_to_run_it_without_resu
     assert main(train_args(demos, run)) == 0
 
 
-def test_a_second_writer_of_a_dataset_or_a_main_job_is_refused(tmp_path, capsys):
+def test_a_second_writer_of_a_dataset_a_main_job_a_leaderboard_or_a_video_is_refused(tmp_path, capsys):
     demos, main_out = tmp_path / "d.npz", tmp_path / "main"
+    board, clip = tmp_path / "board", tmp_path / "c.mp4"
     commands = {demos: ["demos", "--episodes", "1", "--out", str(demos), "--quiet", *TINY],
                 main_out: ["run", "--demos", "1", "--episodes", "1", "--tests", "1", "--out", str(main_out),
-                           "--quiet", *TINY]}  # fmt: skip
+                           "--quiet", *TINY],
+                board: ["leaderboard", str(tmp_path / "results"), "--out", str(board)],
+                clip: ["render", "--policy", "rule", "--out", str(clip)]}  # fmt: skip
     for target, argv in commands.items():
         process, pid = hold(target, tmp_path)
         try:
@@ -400,6 +403,26 @@ def test_a_dataset_whose_task_record_breaks_the_task_file_s_rules_is_one_error_l
     assert main(["inspect", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(bad) in err[0] and "task record" in err[0] and needle in err[0], err
+
+
+def test_a_bare_dataset_reader_checks_task_records_without_the_gymnasium_extra(demos, tmp_path):
+    """The task file's rules reach ``load_dataset`` from ``import nirl_mj`` itself: without Gymnasium
+    (whose registration also imports the task specs) a record with a negative speed is refused."""
+    import json
+
+    with np.load(demos) as stored:
+        arrays = {k: stored[k] for k in stored.files}
+    tasks = [json.loads(text) for text in arrays["tasks"].tolist()]
+    tasks[0]["control"]["speed"] = -1.0
+    arrays["tasks"] = np.array([json.dumps(task) for task in tasks])
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    code = ("import sys; sys.modules['gymnasium'] = None\n"
+            "from nirl_mj.data.dataset import DatasetError, load_dataset\n"
+            f"try:\n    load_dataset({str(bad)!r})\n"
+            "except DatasetError as exc:\n    print('refused:', exc)")  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.startswith("refused:") and "control.speed" in done.stdout, done.stdout + done.stderr
 
 
 @pytest.mark.parametrize("line", ["[1]", "not json", '"x"'])

@@ -75,6 +75,12 @@ measured at: today's but for the max-margin step, which decayed (``mmp_step_deca
 after them, :data:`REMOVED`)."""
 
 
+VALIDATION_NOTE = (
+    "success on 20 validation arenas of every 5th iterate, the best 3 on 20 more, which "
+    "reads the task; development arenas"
+)  # NIRL-validation (experiments/training.py select)
+
+
 def undone(ablated: str, note: str = DEV) -> tuple[Ablation, Ablation]:
     """A departure undone alone on the same development runs at today's default
     (tasks/ablations/departures_today.toml) and at the decaying step's (tasks/ablations/departures.toml)."""
@@ -237,14 +243,14 @@ DEPARTURES: tuple[Departure, ...] = (
                 "information_budget_today",
                 "NIRL-validation",
                 "NIRL",
-                note="success on 40 validation arenas instead, which reads the task; development arenas",
+                note=VALIDATION_NOTE,
             ),
             Ablation(
                 "information_budget",
                 "NIRL-validation",
                 "NIRL",
                 at=DECAY,
-                note="success on 40 validation arenas instead, which reads the task; development arenas",
+                note=VALIDATION_NOTE,
             ),
             Unstored(f"plain accuracy: ablated post hoc at the default {FIRST}, 5 runs, no stored result"),
         ),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
@@ -228,7 +229,12 @@ def cmd_inspect(args: argparse.Namespace) -> int:
 def cmd_teleop(args: argparse.Namespace) -> int:
     from nirl_mj.experts import teleop  # opens MuJoCo's viewer: only when asked
 
-    out = _check_output(args.out, args.overwrite)
+    out = _check_output(args.out, args.overwrite)  # a bad --out is refused before the lock beside it
+    with DirectoryLock(out, "teleop"):  # one writer of the dataset file
+        return _teleop(args, teleop, out)
+
+
+def _teleop(args: argparse.Namespace, teleop, out: Path) -> int:
     env = make_env(_task(args))
     print(teleop.__doc__.split("\n\n", 2)[2], file=sys.stderr)
     trajectories = []
@@ -419,6 +425,13 @@ def cmd_render(args: argparse.Namespace) -> int:
         )
     for path in outputs:
         _check_output(path, args.overwrite)
+    with contextlib.ExitStack() as held:
+        for path in outputs:  # one writer of each file
+            held.enter_context(DirectoryLock(path, "render"))
+        return _render(args)
+
+
+def _render(args: argparse.Namespace) -> int:
     video.check_frame(args.camera, args.width, args.height)
     video.check_backend()
     if args.episode < 0:
@@ -513,7 +526,8 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
     """Merges output directories of compare and suite into one ranked table (docs/EXTENDING.md)."""
     from nirl_mj.experiments.leaderboard import write_leaderboard
 
-    table, files = write_leaderboard(args.dirs, args.out, args.overwrite)
+    with DirectoryLock(args.out, "leaderboard"):  # one writer of OUT
+        table, files = write_leaderboard(args.dirs, args.out, args.overwrite)
     print(table)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0

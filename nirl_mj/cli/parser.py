@@ -39,10 +39,16 @@ _seed = _number(int, 0, 2**63 - 1, "a seed, a whole number in 0 .. 2^63 - 1")
 _workers = _number(int, 1, 1024, "a number of processes in 1 .. 1024")
 
 
+OVERWRITE_RERUN = (
+    "overwrite=an existing --rerun file (a run in --out is continued with --resume, never replaced)"
+)
+"""``run`` and ``train``: ``--overwrite`` reaches only the recording; their run is resumed, not replaced."""
+
+
 def _command(sub, name: str, func: Callable, help: str, *common: str, task: str | None = "navigate"):
     """A subcommand with its function and shared options: --task (None when not given: the command
     uses what ``task`` describes as its default; ``task`` None: no task options) with --set;
-    ``common`` from json, quiet, overwrite, rerun=WHAT, backend=WHAT."""
+    ``common`` from json, quiet, overwrite[=WHAT], rerun=WHAT, backend=WHAT."""
     parser = sub.add_parser(name, help=help)
     parser.set_defaults(func=func)
     if task is not None:
@@ -75,7 +81,9 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
         elif key == "quiet":
             parser.add_argument("--quiet", action="store_true", help="no progress bar")
         elif key == "overwrite":
-            parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
+            parser.add_argument(
+                "--overwrite", action="store_true", help=f"replace {what or 'existing output files'}"
+            )
         elif key == "rerun":
             parser.add_argument(
                 "--rerun", default=None, metavar="FILE.rrd", help=f"also write a Rerun recording: {what}"
@@ -138,7 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     iterations = dict(type=_positive_int, default=None, help="learner iterations (default: the variant's)")
 
     p = _command(sub, "run", c.cmd_run, "the main job: demonstrations, NIRL, held-out evaluation next to the "
-                 "references, report", "json", "quiet", "overwrite",
+                 "references, report", "json", "quiet", OVERWRITE_RERUN,
                  "rerun=a copy of RUN_DIR/run.rrd (always written)")
     p.set_defaults(interrupted="finished stages are kept: continue with nirl-mj run --out {out} --resume")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
@@ -179,7 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--out", required=True, help="dataset path (.npz)")
 
-    p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet", "overwrite",
+    p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet",
+                 OVERWRITE_RERUN,
                  "backend=rollouts, validation and selection episodes",
                  "rerun=training scalars per iteration, demonstrations with r_theta, reward map",
                  task="navigate; with --resume the run's own")  # fmt: skip

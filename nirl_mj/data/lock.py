@@ -23,9 +23,12 @@ class LockedError(RuntimeError):
 class DirectoryLock:
     """An exclusive lock on writing ``path`` (a directory, or a file such as a dataset)."""
 
-    def __init__(self, path: str | os.PathLike, what: str = "output") -> None:
+    def __init__(self, path: str | os.PathLike, what: str = "output", wait: bool = False) -> None:
+        """``wait``: block until the holder releases it instead of refusing (for a short update of
+        one file, such as a run's ``eval.json``, that many processes may make)."""
         self.path = Path(path).resolve()
         self.what = what
+        self.wait = wait
         self.lock_file = self.path.parent / f".{self.path.name}.lock"
         self._fd: int | None = None
 
@@ -48,7 +51,7 @@ class DirectoryLock:
         """Locks ``fd``; False if its file is no longer the lock file (a releasing holder removed it:
         the next attempt opens the new one)."""
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX if self.wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
             raise LockedError(

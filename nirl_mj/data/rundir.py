@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from nirl_mj.data.atomic import AtomicFile, leftover_temporaries, write_npz, write_text
+from nirl_mj.data.lock import DirectoryLock
 
 RUN_FILE, METRICS_FILE, CHECKPOINT_FILE = "run.json", "metrics.jsonl", "checkpoint.npz"
 POLICY_FILE, REWARD_FILE, EVAL_FILE = "policy.npz", "reward.json", "eval.json"
@@ -238,8 +239,11 @@ class RunDir:
         return evaluations
 
     def add_evaluation(self, key: str, result: Mapping[str, Any]) -> None:
-        """Stores ``result`` under ``key`` in ``eval.json``, keeping the other entries."""
-        write_text(self.file(EVAL_FILE), json.dumps({**self.read_evaluations(), key: dict(result)}, indent=1))
+        """Stores ``result`` under ``key`` in ``eval.json``, keeping the other entries; evaluations of
+        one run in several processes wait for each other here, so that none loses another's entry."""
+        with DirectoryLock(self.file(EVAL_FILE), "eval", wait=True):
+            evaluations = {**self.read_evaluations(), key: dict(result)}
+            write_text(self.file(EVAL_FILE), json.dumps(evaluations, indent=1))
 
 
 def _json_object(path: Path) -> dict[str, Any]:

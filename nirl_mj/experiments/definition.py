@@ -387,6 +387,7 @@ def from_dict(
             width=_int(table.get("width", 480), f"{where('strip')}.width", 16),
             height=_int(table.get("height", 360), f"{where('strip')}.height", 16),
         )
+        _check_frame(strip, where("strip"))
     experiment = Experiment(
         kind=kind,
         name=Path(source).stem,
@@ -708,6 +709,17 @@ def _list(value: Any, where: str) -> list:
     if not isinstance(value, list):
         raise ExperimentError(f"{where} = {value!r}: expected a list")
     return value
+
+
+def _check_frame(strip: StripSpec, where: str) -> None:
+    """The strip's camera and frame size as the renderer accepts them, checked now: the strip is
+    drawn after every cell has run, too late to refuse a typo."""
+    from nirl_mj.inspect.video import RenderError, check_frame  # imports MuJoCo: only for a [strip]
+
+    try:
+        check_frame(strip.camera, strip.width, strip.height)
+    except RenderError as exc:
+        raise ExperimentError(f"{where}: {exc}") from None
 
 
 def _str(value: Any, where: str) -> str:
