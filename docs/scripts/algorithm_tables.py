@@ -65,7 +65,6 @@ class Departure:
     evidence: tuple[Ablation | Unstored, ...]
 
 
-FIRST = "before 2026-11-24 (the first inner learner)"
 ROUND1 = "2026-11-24"
 BALL = "\\|\\|theta\\|\\| <= 1"  # escaped for a table cell
 DEV = "development arenas, demonstrations drawn per run"
@@ -119,11 +118,8 @@ DEPARTURES: tuple[Departure, ...] = (
         "actions that never reads the learner; with its policies, a state where all of them already take "
         "the expert's action costs nothing",
         (
+            Ablation("departures_today", "matching-paper", "NIRL", note=f"eq. 11's expectations; {DEV}"),
             Ablation("table1_fair", "NIRL-classifier", "NIRL", note="every action an alternative"),
-            Unstored(
-                "per-pair against whole-trajectory expectations: not ablated alone (only within "
-                "`NIRL-paper`, last row)"
-            ),
         ),
     ),
     Departure(
@@ -133,6 +129,7 @@ DEPARTURES: tuple[Departure, ...] = (
         'action: it matches action frequencies, and the reward comes to prefer "forward", the expert\'s '
         "most frequent action, nearly everywhere",
         (
+            Ablation("departures_today", "learner-mu", "NIRL", note=f"`future_mix = 1`; {DEV}"),
             Ablation(
                 "nirl_reading",
                 "NIRL-learner-mu",
@@ -238,6 +235,7 @@ DEPARTURES: tuple[Departure, ...] = (
         "plain accuracy favours the always-forward network, which matches most of the expert's labels; "
         "per-action recall does not",
         (
+            Ablation("departures_today", "select-accuracy", "NIRL", note=f"plain accuracy; {DEV}"),
             Ablation("table1_fair", "NIRL-last", "NIRL", note="the last iterate, no selection"),
             Ablation(
                 "information_budget_today",
@@ -252,7 +250,6 @@ DEPARTURES: tuple[Departure, ...] = (
                 at=DECAY,
                 note=VALIDATION_NOTE,
             ),
-            Unstored(f"plain accuracy: ablated post hoc at the default {FIRST}, 5 runs, no stored result"),
         ),
     ),
     Departure(

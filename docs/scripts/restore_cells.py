@@ -1,8 +1,8 @@
 """Restores a compare experiment's finished cells from its published results, so that an output
 directory lost with its machine is resumed instead of recomputed.
 
-    python docs/scripts/restore_cells.py TASK OUT SOURCE [--runs A-B] [--rename NEW=OLD ...]
-        [--skip NAMES]
+    python docs/scripts/restore_cells.py TASK OUT SOURCE [--runs A-B] [--extend N]
+        [--rename NEW=OLD ...] [--skip NAMES]
     (SOURCE: a published results folder such as docs/results/table1_extended, which holds the
     experiment's experiment.json and results.json)
 
@@ -17,6 +17,7 @@ same compare command afterwards: it computes only the cells left.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from nirl_mj.experiments.compare import cell_id
@@ -40,6 +41,9 @@ def main() -> None:
     parser.add_argument("out", type=Path)
     parser.add_argument("source", type=Path)
     parser.add_argument("--runs", type=run_range, help="A-B: only these runs (default: every run)")
+    parser.add_argument("--extend", type=int, default=None, metavar="N",
+                        help="open OUT with runs 0..N-1, as `compare --runs N` does (rows run beyond the "
+                        "file's `runs`)")  # fmt: skip
     parser.add_argument("--rename", action="append", default=[], metavar="NEW=OLD",
                         help="take NEW's cells from SOURCE's method OLD (same learner settings)")  # fmt: skip
     parser.add_argument("--skip", default="", metavar="NAMES",
@@ -51,6 +55,10 @@ def main() -> None:
     rename = dict(pair.split("=", 1) for pair in args.rename)
     try:
         experiment = load_experiment(args.task, kind="compare")
+        if args.extend is not None:
+            if args.extend < 1:
+                raise ExperimentError(f"--extend {args.extend}: give a number of runs >= 1")
+            experiment = dataclasses.replace(experiment, runs=args.extend)
         skip = {n.strip() for n in args.skip.split(",") if n.strip()}
         if unknown := sorted(skip - {m.name for m in experiment.methods}):
             raise ExperimentError(f"--skip {', '.join(unknown)}: not a method of {experiment.name}")
