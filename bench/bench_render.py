@@ -11,8 +11,9 @@
    recording calls (per-iteration scalars, then demonstrations with r_theta and
    the reward map at the end) is timed directly, since wall-time differences of
    a few % drown in this machine's +-30 % drift. Without ``--rerun`` no
-   recording object exists; a subprocess reports whether importing ``nirl_mj.cli`` imports
-   ``rerun`` (it does).
+   recording object exists; a subprocess runs a one-iteration ``nirl-mj train`` without
+   ``--rerun`` and reports whether ``rerun`` was imported (it is: the command line imports
+   ``inspect.recording`` at start-up).
 
 Writes docs/PERFORMANCE.md.
 

@@ -4,10 +4,11 @@ For each command, a reference run to completion; then ``--kills`` times: the sam
 fresh output, killed (SIGKILL: no clean-up runs) after a random delay drawn from the reference's
 duration, then run again as a user would (``--resume`` where the command takes it; ``demos`` and
 ``export`` with ``--overwrite``; else the same command); its results must equal the reference's
-bit for bit where compared, timing fields aside: a run's and a comparison's results.json and a
-policy, a dataset's arrays, an export's episodes, steps and actions. Tiny settings (a 24 m arena,
-the planar drive), so a kill lands anywhere: in start-up, in the middle of a write, or after the
-end. Prints one line per kill and a summary; exit status 1 if any resume lost or changed anything.
+bit for bit where compared, timing fields aside: a run's results.json and NIRL policy, a
+comparison's cell records, a training's policy, checkpoint and metrics, a dataset's arrays, an
+export's episodes, steps and actions. Tiny settings (a 24 m arena, the planar drive), so a kill
+lands anywhere: in start-up, in the middle of a write, or after the end. Prints one line per kill
+and a summary; exit status 1 if any resume lost or changed anything.
 
     python bench/fault_injection.py [--kills 10] [--seed 0]      (5 commands x kills in all)
 """

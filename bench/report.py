@@ -16,7 +16,13 @@ from nirl_mj.data.atomic import write_text
 PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
 _HEADER = (
     "# Performance\n\nEach section is written by the benchmark named in it; "
-    "rerun the command to refresh it.\n"
+    "rerun the command to refresh it (its hand-written notes are kept).\n"
+)
+HAND_NOTE = "Note (by hand)"
+"""How a hand-written paragraph of a section starts: a rewrite keeps it (:func:`write_section`)."""
+KEPT = (
+    "Notes by hand kept from this section's earlier versions (they speak of the figures they were "
+    "written beside):"
 )
 
 
@@ -48,22 +54,27 @@ def git_commit() -> str:
         return "unknown"
 
 
-def write_section(name: str, body: str) -> None:
-    """Replaces (or appends) the section ``## name`` with ``body`` plus machine, date and command."""
+def write_section(name: str, body: str, path: Path = PERFORMANCE_MD) -> None:
+    """Replaces (or appends) the section ``## name`` of ``path`` with ``body`` plus machine, date and
+    command; the old section's paragraphs that start with :data:`HAND_NOTE` follow the new figures
+    (a rerun never deletes what a person wrote there)."""
     stamp = (
         f"Machine: {machine()}. Date: {datetime.now(UTC):%Y-%m-%d %H:%M} UTC. Commit: {git_commit()}.\n"
         f"Command: `{shlex.join(['python', *sys.argv])}`\n\n"
     )
     section = f"## {name}\n\n{stamp}{body.strip()}\n"
-    text = PERFORMANCE_MD.read_text() if PERFORMANCE_MD.exists() else _HEADER
+    text = path.read_text() if path.exists() else _HEADER
     pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.S | re.M)
-    text = (
-        pattern.sub(lambda _: section + "\n", text)
-        if pattern.search(text)
-        else text.rstrip() + "\n\n" + section
-    )
-    PERFORMANCE_MD.parent.mkdir(parents=True, exist_ok=True)
-    write_text(PERFORMANCE_MD, text)
+    old = pattern.search(text)
+    if old is None:
+        text = text.rstrip() + "\n\n" + section
+    else:
+        notes = [p.strip() for p in re.split(r"\n[ \t]*\n", old.group(0)) if p.lstrip().startswith(HAND_NOTE)]
+        if notes:
+            section += "\n" + "\n\n".join([KEPT, *notes]) + "\n"
+        text = text[: old.start()] + section + "\n" + text[old.end() :]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, text)
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
