@@ -12,6 +12,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
+from nirl_mj.data.lock import DirectoryLock
 
 PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
 _HEADER = (
@@ -63,6 +64,12 @@ def write_section(name: str, body: str, path: Path = PERFORMANCE_MD) -> None:
         f"Command: `{shlex.join(['python', *sys.argv])}`\n\n"
     )
     section = f"## {name}\n\n{stamp}{body.strip()}\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with DirectoryLock(path, "benchmark", wait=True):  # two benchmarks ending together: one waits
+        _replace_section(path, name, section)
+
+
+def _replace_section(path: Path, name: str, section: str) -> None:
     text = path.read_text() if path.exists() else _HEADER
     pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.S | re.M)
     old = pattern.search(text)
@@ -73,7 +80,6 @@ def write_section(name: str, body: str, path: Path = PERFORMANCE_MD) -> None:
         if notes:
             section += "\n" + "\n\n".join([KEPT, *notes]) + "\n"
         text = text[: old.start()] + section + "\n" + text[old.end() :]
-    path.parent.mkdir(parents=True, exist_ok=True)
     write_text(path, text)
 
 

@@ -177,6 +177,10 @@ def test_two_writers_of_one_run_or_experiment_the_second_is_refused_every_time(d
         printed = capsys.readouterr().out
         assert "| rule |" in printed and f"is being written by process {pid}" in printed
         assert "printed, not written" in printed and tree_digests(out) == before
+        grown = tmp_path / "grown.toml"  # a method added: the running experiment records it, not a report
+        grown.write_text(spec.read_text().replace('["rule"]', '["rule", "forward"]'))
+        assert main(["compare", "--task", str(grown), "--out", str(out), "--quiet", "--report"]) == 0
+        assert "printed, not written" in capsys.readouterr().out and tree_digests(out) == before
     finally:
         process.send_signal(signal.SIGKILL)
         process.wait()

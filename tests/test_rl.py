@@ -86,6 +86,22 @@ def test_overwrite_replaces_only_an_rl_run(tmp_path, capsys):
     assert (other / "notes.txt").read_text() == "mine"
 
 
+def test_an_overwrite_with_a_bad_argument_keeps_the_run_it_would_replace(tmp_path, capsys):
+    """--overwrite removes the old run only once every argument has been checked (it removed it
+    first, and then refused the task name)."""
+    run = tmp_path / "run"
+    assert main(["rl", "--steps", "8", "--out", str(run), "--quiet", *SMALL]) == 0
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    for bad in (
+        ["--task", "no_such_task"],
+        ["--envs", "3"],
+        ["--algo", "gail", "--demos", str(tmp_path / "x.npz")],
+    ):
+        assert main(["rl", "--steps", "8", "--out", str(run), "--overwrite", "--quiet", *SMALL, *bad]) == 2
+        capsys.readouterr()
+        assert {p.name: p.read_bytes() for p in run.iterdir()} == before, bad
+
+
 def test_gail_and_airl_need_demos_and_the_others_refuse_them(tmp_path, capsys):
     assert main(["rl", "--algo", "gail", "--out", str(tmp_path / "g"), "--quiet", *SMALL]) == 2
     assert "--demos goes with --algo gail or airl" in capsys.readouterr().err

@@ -37,6 +37,7 @@ import numpy as np
 
 from nirl_mj.data.atomic import write_figure, write_text
 from nirl_mj.data.dataset import load_dataset
+from nirl_mj.data.lock import DirectoryLock, LockedError
 from nirl_mj.experiments.definition import load_experiment
 from nirl_mj.experiments.evaluation import metrics_of
 from nirl_mj.experiments.seeds import held_out_seeds
@@ -166,6 +167,17 @@ def main() -> None:
             parser.error(f"--methods: unknown {name!r}; accepted: {', '.join(BUILT_HERE)}")
         sources[name] = None
     args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        with DirectoryLock(args.out, "floor_plan_table"):  # families.json is read once, then rewritten
+            compute(args, sources, parser)
+    except LockedError as exc:
+        parser.exit(2, f"floor_plan_table: {exc}\n")
+
+
+def compute(
+    args: argparse.Namespace, sources: dict[str, str | None], parser: argparse.ArgumentParser
+) -> None:
+    """The cells ``--out`` lacks, each stored as it finishes, then the tables."""
     store = args.out / "families.json"
     done = json.loads(store.read_text()) if store.is_file() else {"tests": args.tests, "cells": []}
     done.setdefault("guide", "target")  # files written before --guide existed

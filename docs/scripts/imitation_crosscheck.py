@@ -17,7 +17,8 @@ built outside the repository:
         "gymnasium==0.29.1" "torch==2.13.0" "numpy==2.4.6"
 
     /work/imitation-venv/bin/python docs/scripts/imitation_crosscheck.py --algo airl --run 0
-    (--steps 50000: decisions; --tests N: the first N test arenas only; --out DIR: elsewhere;
+    (--steps 50000: decisions; --tests N: the first N test arenas only; --out DIR: elsewhere (a
+     result already there is refused unless --overwrite: the default --out is the published one);
      --demo-batch-size, --disc-updates: the library's discriminator batch and steps per round;
      --output-norm none: an ablation without NormalizedRewardNet, written to
      <algo>_run<r>_no-output-norm.json; --model-dir: where the final PPO model is saved)
@@ -219,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=50_000, help="decisions (rounded up to whole rollouts)")
     parser.add_argument("--tests", type=int, default=None, help="the first N test arenas only (smoke tests)")
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a result already in --out (by default it is kept)")  # fmt: skip
     parser.add_argument("--demo-batch-size", type=int, default=1024)
     parser.add_argument("--disc-updates", type=int, default=4, help="n_disc_updates_per_round")
     models = Path(tempfile.gettempdir()) / "imitation_crosscheck_models"
@@ -228,6 +231,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="none: the reward net without NormalizedRewardNet (an ablation; AIRL's policy "
                         "reward is then the raw f)")  # fmt: skip
     args = parser.parse_args(argv)
+    from nirl_mj.data.atomic import AtomicFile, refuse_existing, write_text
+
+    suffix = "" if args.output_norm == "running" else "_no-output-norm"
+    path = args.out / f"{args.algo}_run{args.run}{suffix}.json"
+    try:  # before the training, not after it
+        refuse_existing(path, args.overwrite, "exists; pass --overwrite to replace it, or give another --out")
+    except FileExistsError as exc:
+        parser.exit(2, f"imitation_crosscheck: {exc}\n")
     torch.set_num_threads(1)
     start = time.monotonic()
 
@@ -238,7 +249,6 @@ def main(argv: list[str] | None = None) -> int:
     from imitation.util.networks import RunningNorm
     from stable_baselines3 import PPO
 
-    from nirl_mj.data.atomic import write_text
     from nirl_mj.experiments.protocol import evaluate_policy
     from nirl_mj.experiments.rl import model_policy, run_config, scaled
 
@@ -295,9 +305,9 @@ def main(argv: list[str] | None = None) -> int:
     from nirl_mj.data.features import ACTION_NAMES
 
     test_shares = np.bincount(taken, minlength=len(ACTION_NAMES)) / max(len(taken), 1)
-    suffix = "" if args.output_norm == "running" else "_no-output-norm"
     args.model_dir.mkdir(parents=True, exist_ok=True)
-    model.save(args.model_dir / f"{args.algo}_run{args.run}{suffix}.zip")
+    with AtomicFile(args.model_dir / f"{args.algo}_run{args.run}{suffix}.zip", ".zip") as target:
+        model.save(target.tmp)  # the temporary ends in .zip: Stable-Baselines3 adds no suffix
 
     inner = f"{type(net).__name__}(normalize_input_layer=RunningNorm)"
     result = {
@@ -342,7 +352,6 @@ def main(argv: list[str] | None = None) -> int:
         "command": " ".join([Path(sys.executable).as_posix(), *sys.argv]),
     }
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / f"{args.algo}_run{args.run}{suffix}.json"
     write_text(path, json.dumps(result, indent=1, default=str) + "\n")
     print(json.dumps({k: result[k] for k in ("algo", "run", "success_rate", "collision_rate", "timeout_rate",
                                               "spl", "wall_seconds")}))  # fmt: skip

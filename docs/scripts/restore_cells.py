@@ -20,6 +20,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from nirl_mj.data.lock import DirectoryLock, LockedError
 from nirl_mj.experiments.compare import cell_id
 from nirl_mj.experiments.definition import ExperimentError, load_experiment
 from nirl_mj.experiments.protocol import Execution, prepare
@@ -62,10 +63,11 @@ def main() -> None:
         skip = {n.strip() for n in args.skip.split(",") if n.strip()}
         if unknown := sorted(skip - {m.name for m in experiment.methods}):
             raise ExperimentError(f"--skip {', '.join(unknown)}: not a method of {experiment.name}")
-        out, jobs = prepare(experiment, args.out, Execution(), print)
-        jobs = {key: job for key, job in jobs.items() if key[0] not in skip}
-        restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
-    except ExperimentError as exc:
+        with DirectoryLock(args.out, experiment.kind):  # the lock a compare on OUT holds
+            out, jobs = prepare(experiment, args.out, Execution(), print)
+            jobs = {key: job for key, job in jobs.items() if key[0] not in skip}
+            restore_published(args.source, experiment, out, jobs, cell_id, rename, args.runs)
+    except (ExperimentError, LockedError) as exc:
         parser.exit(2, f"restore_cells: {exc}\n")
 
 

@@ -7,8 +7,6 @@ import contextlib
 import dataclasses
 import json
 import os
-import re
-import shutil
 import sys
 from pathlib import Path
 
@@ -20,11 +18,7 @@ from nirl_mj.data.features import ACTION_NAMES
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import (
-    DISCRIMINATOR_FILE,
-    EVAL_FILE,
-    MODEL_FILE,
     RUN_FILE,
-    SELECTED_MODEL_FILE,
     RunDir,
     RunError,
 )
@@ -312,12 +306,6 @@ def cmd_rl(args: argparse.Namespace) -> int:
         raise SpecError(f"--demos goes with --algo gail or airl (the demonstrations they imitate); got "
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
     out = RunDir(args.out)
-    if args.overwrite and not args.resume and not out.is_empty():
-        ours = {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
-        extra = {n for n in out.names() - ours if not re.fullmatch(r"selected-\d+\.zip", n)}
-        if not out.is_run or out.read_record().get("kind") != "rl" or extra:
-            raise RunError(f"{out} is not an RL run directory; --overwrite replaces only an RL run")
-        shutil.rmtree(out.path)
     spec = _task(args)
     if args.resume:
         spec = specs.from_dict(out.read_record()["task"], str(out.file(RUN_FILE)))
@@ -332,7 +320,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
 
         record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress,
                           demos=args.demos, selection=args.selection, envs=args.envs,
-                          train_drive=args.train_drive)  # fmt: skip
+                          train_drive=args.train_drive, overwrite=args.overwrite)  # fmt: skip
     arenas = len(record["train_seeds"])
     print(f"trained {args.algo} for {record['steps_done']} decisions ({arenas} training arenas) on "
           f"{spec.name}; run in {args.out} (test it with nirl-mj eval --run {args.out})")  # fmt: skip

@@ -88,10 +88,12 @@ class RunDir:
 
     def remove_leftovers(self) -> list[Path]:
         """Deletes temporary files left by a process killed while writing (call with no writer
-        running: when resuming); returns what was removed."""
-        leftovers = leftover_temporaries(self.path)
-        for path in leftovers:
-            path.unlink(missing_ok=True)
+        running: when resuming); returns what was removed. An evaluation may be adding its entry to
+        ``eval.json`` meanwhile (it holds that file's lock, not the run's): its lock is waited for."""
+        with DirectoryLock(self.file(EVAL_FILE), "eval", wait=True):
+            leftovers = leftover_temporaries(self.path)
+            for path in leftovers:
+                path.unlink(missing_ok=True)
         return leftovers
 
     def names(self) -> set[str]:

@@ -63,14 +63,15 @@ def one_writer(runner: Callable) -> Callable:
     return locked
 
 
-def open_output(out: str | Path, experiment: Experiment) -> Path:
+def open_output(out: str | Path, experiment: Experiment, record: bool = True) -> Path:
     """Creates OUT for ``experiment``, or re-opens it to resume the same experiment.
 
     Refuses a non-empty directory of another experiment (naming the keys that differ)
     or of anything else. Methods may be added (:func:`grows`), and learner changes spelled
     otherwise with the same resolved settings (a default's value pinned in ``[config]``) are the same
     experiment. Returns OUT as an absolute path: cells may run in another
-    working directory (Ray workers do)."""
+    working directory (Ray workers do). ``record`` False (a report beside the running experiment)
+    writes nothing: a grown experiment is recorded by the run that computes it."""
     out = Path(out).resolve()
     marker = out / EXPERIMENT_FILE
     identity = experiment.identity()
@@ -91,7 +92,8 @@ def open_output(out: str | Path, experiment: Experiment) -> Path:
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "
                 "runs' test arenas stay the same; none may change or go)"
             )
-        if differ:  # grown by new methods (the same learners spelled otherwise keep what they were)
+        # grown by new methods (the same learners spelled otherwise keep what they were)
+        if differ and record:
             from nirl_mj.data.atomic import write_text
 
             write_text(marker, json.dumps(identity, indent=1))
@@ -204,7 +206,7 @@ def prepare(
         raise ExperimentError("--restore takes a published suite's cells: suites only (a comparison's: "
                               "docs/scripts/restore_cells.py)")  # fmt: skip
     execution.check_output(out)
-    out = open_output(out, experiment)
+    out = open_output(out, experiment, record=execution.writes_tables)
     if not execution.report_only:  # a report may run beside the experiment: then nothing is left over
         for folder in (out, out / "cells", out / "demos"):
             for leftover in leftover_temporaries(folder):

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -40,6 +41,8 @@ import numpy as np
 
 from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import (
+    DISCRIMINATOR_FILE,
+    EVAL_FILE,
     MODEL_FILE,
     POLICIES,
     RUN_FILE,
@@ -259,6 +262,18 @@ def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int
     return score
 
 
+def _clear_rl_run(run: RunDir) -> None:
+    """Removes an RL run's files (for ``overwrite``); anything else in the directory refuses it."""
+    ours = {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
+    run.remove_leftovers()  # a killed write's temporary
+    names = run.names()
+    extra = {n for n in names - ours if not re.fullmatch(r"selected-\d+\.zip", n)}  # SELECTED_MODEL_PATTERN
+    if not run.is_run or run.read_record().get("kind") != "rl" or extra:
+        raise RunError(f"{run} is not an RL run directory; --overwrite replaces only an RL run")
+    for name in names:
+        run.file(name).unlink()
+
+
 @writes("training")  # one writer at a time
 def train_rl(
     run_dir: str | os.PathLike,
@@ -274,8 +289,11 @@ def train_rl(
     envs: int | None = None,
     changes: dict | None = None,
     train_drive: str | None = None,
+    overwrite: bool = False,
 ) -> dict:
     """Trains (or resumes) ``algo`` for ``steps`` decisions in ``run_dir``; returns the record.
+    ``overwrite``: an RL run already in ``run_dir`` is replaced (only an RL run, and only once every
+    argument has been checked and the demonstrations read, holding the run's lock).
     GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate. ``selection``
     (:data:`SELECTIONS`; default :func:`default_selection`) scores every checkpoint and keeps the
     best (``selected-<decisions>.zip``); ``envs`` environments share each rollout; ``changes`` tune
@@ -331,10 +349,12 @@ def train_rl(
         record = {**saved, "steps": steps, "reads": record["reads"]}
         if record["steps_done"] >= steps:
             return record
-    elif not run.is_empty():
+    elif not run.is_empty() and not overwrite:
         raise RunError(f"{run} exists and is not empty; pass --resume to continue it, --overwrite to "
                        "replace it, or choose another --out")  # fmt: skip
     else:
+        if not run.is_empty():
+            _clear_rl_run(run)
         run.write_record(record)
 
     legacy = "selection" not in config

@@ -97,7 +97,7 @@ def run_suite(
     execution.check_output(out)
     if execution.restore:  # checked and read before OUT is made
         published = published_suite(execution.restore, experiment, execution.only, log)
-    out = open_output(out, experiment)
+    out = open_output(out, experiment, record=execution.writes_tables)
     if execution.restore:
         restore_suite(*published, out, log)
     workers = execution.workers or default_workers()
