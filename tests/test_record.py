@@ -165,6 +165,21 @@ def test_recording_is_atomic(tmp_path, episode):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_recording_without_overwrite_never_replaces_a_file_that_appeared_meanwhile(tmp_path, episode):
+    """The commands check --rerun's path at start and write it at the end: a file another process put
+    there in between is kept, and the recording refused, unless --overwrite."""
+    _, trajectory = episode
+    path = tmp_path / "x.rrd"
+    with pytest.raises(FileExistsError, match="pass --overwrite"):
+        with Recording(path, overwrite=False) as recording:
+            recording.episode("demos/000", trajectory)
+            path.write_bytes(b"someone else's")
+    assert path.read_bytes() == b"someone else's" and sorted(tmp_path.iterdir()) == [path]
+    with Recording(path) as recording:  # overwrite (the default of the library call) replaces it
+        recording.episode("demos/000", trajectory)
+    assert path.read_bytes() != b"someone else's"
+
+
 def test_train_and_eval_write_recordings(tmp_path, capsys):
     task = tmp_path / "tiny.toml"
     task.write_text('[arena]\nsize = [30.0, 30.0]\nstart = [5.0, 5.0]\ntarget = [25.0, 25.0]\n'

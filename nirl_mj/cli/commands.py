@@ -117,7 +117,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(report_table(args.out))
     print(f"report: {Path(args.out) / 'report.md'}")
     if args.rerun:
-        print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun)}")
+        print(f"wrote {copy_recording(Path(args.out) / 'run.rrd', args.rerun, args.overwrite)}")
     if args.json:
         print(json.dumps({name: r["success_rate"] for name, r in results.items()}))
     return 0
@@ -169,7 +169,7 @@ def _demos(args: argparse.Namespace) -> int:
     pred = _summary(trajectories, summary)
     print(f"wrote {out}")
     if args.rerun:
-        record_demonstrations(args.rerun, trajectories)
+        record_demonstrations(args.rerun, trajectories, overwrite=args.overwrite)
         print(f"wrote {args.rerun}")
     if args.json:
         print(json.dumps({**summary, "predictability": pred, "expert": args.expert, "out": str(out)}))
@@ -272,7 +272,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         spec, demos, seed = _task(args), args.demos, args.seed or 0
         backend = _backend(args)
     done = RunDir(args.out).iterations_done() if args.resume else 0
-    recording = Recording(_check_output(args.rerun, args.overwrite)) if args.rerun else None
+    recording = (
+        Recording(_check_output(args.rerun, args.overwrite), overwrite=args.overwrite) if args.rerun else None
+    )
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
 
         def progress(m) -> None:
@@ -384,9 +386,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         from nirl_mj.inspect.recording import record_evaluation
 
         reward = subject.reward()
-        record_evaluation(
-            args.rerun, subject.name, trajectories, reward, (spec, seeds[0]) if reward else None
-        )
+        map_arena = (spec, seeds[0]) if reward else None
+        record_evaluation(args.rerun, subject.name, trajectories, reward, map_arena, args.overwrite)
         print(f"wrote {args.rerun}")
     if args.json:
         print(json.dumps(result))

@@ -75,6 +75,7 @@ if TYPE_CHECKING:
     from nirl_mj.learn.reward import RewardModel
     from nirl_mj.sim.spec import TaskSpec
 
+_EXISTS = "exists; pass --overwrite (overwrite=True) to replace it, or choose another --rerun file"
 _OBSTACLE = (150, 150, 160)
 _WALL = (90, 90, 100)
 _MOVING = (255, 140, 26)
@@ -492,10 +493,13 @@ class Recording(AtomicFile):
     :meth:`close` moves it to ``path`` (after the legends, the training figure and the default
     blueprint); :meth:`abort`, or an exception inside a ``with`` block, deletes it. ``rec`` is the
     open :class:`rerun.RecordingStream`. ``method`` names whose training and learned reward the
-    recording holds (tabs and plot titles say it)."""
+    recording holds (tabs and plot titles say it). ``overwrite`` False: a ``path`` that exists, now or
+    when the recording closes, is refused (``FileExistsError``)."""
 
-    def __init__(self, path: str | os.PathLike, focus: str | None = None, method: str = "NIRL") -> None:
-        super().__init__(path)
+    def __init__(
+        self, path: str | os.PathLike, focus: str | None = None, method: str = "NIRL", overwrite: bool = True
+    ) -> None:
+        super().__init__(path, overwrite=overwrite, refusal=_EXISTS)
         self.focus = focus  # the episode whose tabs the layout opens on (None: the first)
         self.method = method
         try:
@@ -623,20 +627,23 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     return recording.close()
 
 
-def copy_recording(source: str | os.PathLike, target: str | os.PathLike) -> Path:
+def copy_recording(source: str | os.PathLike, target: str | os.PathLike, overwrite: bool = True) -> Path:
     """Copies the recording ``source`` to ``target`` atomically (a temporary file, then a rename)."""
     import shutil
 
-    with AtomicFile(target) as out:
+    with AtomicFile(target, overwrite=overwrite, refusal=_EXISTS) as out:
         shutil.copyfile(source, out.tmp)
     return out.path
 
 
 def record_demonstrations(
-    path: str | os.PathLike, trajectories: Sequence[Trajectory], reward: RewardModel | None = None
+    path: str | os.PathLike,
+    trajectories: Sequence[Trajectory],
+    reward: RewardModel | None = None,
+    overwrite: bool = True,
 ) -> Path:
     """Writes a ``.rrd`` with every demonstration (``demos/<i>``), atomically."""
-    return record_run(path, trajectories, (), {}, reward=reward)
+    return record_run(path, trajectories, (), {}, reward=reward, overwrite=overwrite)
 
 
 def record_evaluation(
@@ -645,12 +652,21 @@ def record_evaluation(
     trajectories: Sequence[Trajectory],
     reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
+    overwrite: bool = True,
 ) -> Path:
     """Writes a ``.rrd`` with every evaluation episode (``eval/<slug(name)>/<i>``), r_theta along
     each when ``reward`` (``name``'s learned reward) is given, and the reward map of ``map_arena``
     (task, arena seed)."""
     return record_run(
-        path, (), (), {name: trajectories}, len(trajectories), reward, map_arena, reward_of=name
+        path,
+        (),
+        (),
+        {name: trajectories},
+        len(trajectories),
+        reward,
+        map_arena,
+        reward_of=name,
+        overwrite=overwrite,
     )
 
 
@@ -665,6 +681,7 @@ def record_run(
     focus: str | None = None,
     reward_of: str | None = None,
     selected: int | None = None,
+    overwrite: bool = True,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
     scalars, the first ``max_paths`` test episodes of each policy (``eval/<policy slug>/<i>``; the
@@ -672,9 +689,10 @@ def record_run(
     and the test episodes of the policy whose reward it is (``reward_of``; default: the first of
     ``evaluations``; the other policies' tabs show only their own data) and the reward map in
     ``map_arena`` (task, arena seed) if given; the layout opens on the episode ``focus`` (an
-    entity path; None: the first); the training figure marks the ``selected`` iteration."""
+    entity path; None: the first); the training figure marks the ``selected`` iteration.
+    ``overwrite`` False: an existing ``path`` is refused, now or when the file is moved into place."""
     owner = reward_of if reward_of is not None else next(iter(evaluations), "NIRL")
-    with Recording(path, focus, owner) as recording:
+    with Recording(path, focus, owner, overwrite) as recording:
         recording.selected_iteration = selected
         recording.group("demos", "demonstrations", "demonstrations", len(demos))
         for i, trajectory in enumerate(demos):
