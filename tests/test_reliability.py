@@ -302,6 +302,26 @@ def test_values_out_of_range_are_one_error_line(tmp_path, monkeypatch, capsys, a
     assert code == 2 and needle in err and "Traceback" not in err and not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["leaderboard", "nothing_here"], "nothing_here"),  # its lock would make runs/ for runs/leaderboard
+        (["render", "--policy", "rule", "--out", "a.png", "--montage", "a.png"], "name the same file"),
+    ],
+)
+def test_a_refused_command_creates_nothing(tmp_path, monkeypatch, capsys, argv, needle):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "being written" not in err and not list(tmp_path.iterdir())
+
+
+def test_a_run_directory_that_does_not_exist_has_no_leftovers_and_is_not_made(tmp_path):
+    from nirl_mj.data.rundir import RunDir
+
+    assert RunDir(tmp_path / "a" / "run").remove_leftovers() == [] and not (tmp_path / "a").exists()
+
+
 def test_the_scratch_folder_of_a_killed_collection_is_removed_by_the_next(tmp_path, monkeypatch):
     import tempfile
 
@@ -335,10 +355,14 @@ def test_a_resume_of_a_training_that_had_not_started_says_to_run_it_without_resu
 def test_a_second_writer_of_a_dataset_a_main_job_a_leaderboard_or_a_video_is_refused(tmp_path, capsys):
     demos, main_out = tmp_path / "d.npz", tmp_path / "main"
     board, clip = tmp_path / "board", tmp_path / "c.mp4"
+    (tmp_path / "e").mkdir()
+    results, run_it = rule_experiment(tmp_path / "e")  # a leaderboard's source, read before the lock
+    assert main(run_it) == 0
+    capsys.readouterr()
     commands = {demos: ["demos", "--episodes", "1", "--out", str(demos), "--quiet", *TINY],
                 main_out: ["run", "--demos", "1", "--episodes", "1", "--tests", "1", "--out", str(main_out),
                            "--quiet", *TINY],
-                board: ["leaderboard", str(tmp_path / "results"), "--out", str(board)],
+                board: ["leaderboard", str(results), "--out", str(board)],
                 clip: ["render", "--policy", "rule", "--out", str(clip)]}  # fmt: skip
     for target, argv in commands.items():
         process, pid = hold(target, tmp_path)

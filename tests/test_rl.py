@@ -81,9 +81,10 @@ def test_overwrite_replaces_only_an_rl_run(tmp_path, capsys):
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine")
+    (other / ".fig.png.0123abcd.tmp.png").write_text("another writer's")  # not this command's to delete
     assert main(["rl", "--steps", "8", "--out", str(other), "--overwrite", "--quiet", *SMALL]) == 2
     assert "not an RL run directory" in capsys.readouterr().err
-    assert (other / "notes.txt").read_text() == "mine"
+    assert (other / "notes.txt").read_text() == "mine" and len(list(other.iterdir())) == 2
 
 
 def test_an_overwrite_with_a_bad_argument_keeps_the_run_it_would_replace(tmp_path, capsys):

@@ -18,6 +18,7 @@ from nirl_mj.data.features import ACTION_NAMES
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.data.outcomes import summarise
 from nirl_mj.data.rundir import (
+    EVAL_FILE,
     RUN_FILE,
     RunDir,
     RunError,
@@ -361,6 +362,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         _check_output(args.rerun, args.overwrite)
     if subject.run:
         subject.run.read_evaluations()  # a corrupt eval.json fails now, not after the evaluation
+        with DirectoryLock(subject.run.file(EVAL_FILE), "eval", wait=True):
+            pass  # a file system without locks fails now too
         if not os.access(subject.run.path, os.W_OK):
             raise RunError(f"{subject.run.path} is not writable: eval stores its result in eval.json there")
     seeds = subject.test_seeds(args.seed, args.tests)
@@ -412,6 +415,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise video.RenderError(
             "nothing to write: give --out FILE.mp4, --montage FILE.png and/or --paths FILE.png"
         )
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise video.RenderError("--out, --montage and --paths name the same file; give each its own")
     for path in outputs:
         _check_output(path, args.overwrite)
     with contextlib.ExitStack() as held:
@@ -515,8 +520,7 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
     """Merges output directories of compare and suite into one ranked table (docs/EXTENDING.md)."""
     from nirl_mj.experiments.leaderboard import write_leaderboard
 
-    with DirectoryLock(args.out, "leaderboard"):  # one writer of OUT
-        table, files = write_leaderboard(args.dirs, args.out, args.overwrite)
+    table, files = write_leaderboard(args.dirs, args.out, args.overwrite)  # holding OUT's lock
     print(table)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import fcntl
 import functools
 import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -51,13 +52,22 @@ class DirectoryLock:
         """Locks ``fd``; False if its file is no longer the lock file (a releasing holder removed it:
         the next attempt opens the new one)."""
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX if self.wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+            if self.wait:  # said, so that a wait behind a stopped process is not a silent hang
+                print(f"waiting for process {holder} (another nirl-mj {self.what}) to finish writing "
+                      f"{self.path}", file=sys.stderr)  # fmt: skip
+                fcntl.flock(fd, fcntl.LOCK_EX)
+                return self._current(fd)
             raise LockedError(
                 f"{self.path} is being written by process {holder} (another nirl-mj "
                 f"{self.what}); wait for it to end, or choose another output"
             ) from None
+        return self._current(fd)
+
+    def _current(self, fd: int) -> bool:
+        """Whether the locked ``fd`` is still the lock file (not one a releasing holder removed)."""
         try:
             return os.stat(self.lock_file).st_ino == os.fstat(fd).st_ino
         except FileNotFoundError:

@@ -90,6 +90,8 @@ class RunDir:
         """Deletes temporary files left by a process killed while writing (call with no writer
         running: when resuming); returns what was removed. An evaluation may be adding its entry to
         ``eval.json`` meanwhile (it holds that file's lock, not the run's): its lock is waited for."""
+        if not self.path.is_dir():
+            return []
         with DirectoryLock(self.file(EVAL_FILE), "eval", wait=True):
             leftovers = leftover_temporaries(self.path)
             for path in leftovers:

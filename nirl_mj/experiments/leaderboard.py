@@ -16,6 +16,7 @@ import json
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import ExperimentError
 from nirl_mj.experiments.reads import reads_text
@@ -197,6 +198,19 @@ def write_leaderboard(
             f"{', '.join(map(str, dirs))}: no finished run to rank (run the experiments first)"
         )
     out = Path(out)
+    with DirectoryLock(out, "leaderboard"):  # one writer of OUT (taken once the sources are read)
+        return _write(out, dirs, overwrite, rows, source, reads)
+
+
+def _write(
+    out: Path,
+    dirs: list[str | Path],
+    overwrite: bool,
+    rows: list[dict],
+    source: dict[str, str],
+    reads: dict[str, list[str] | None],
+) -> tuple[str, list[Path]]:
+    """:func:`write_leaderboard`'s checks of OUT and its files, under OUT's lock."""
     if out.exists():
         held = {p.name for p in out.iterdir()} if out.is_dir() else {"?"}
         if held - set(FILES):

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.data.lock import writes
 from nirl_mj.data.rundir import (
     DISCRIMINATOR_FILE,
@@ -265,13 +266,14 @@ def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int
 def _clear_rl_run(run: RunDir) -> None:
     """Removes an RL run's files (for ``overwrite``); anything else in the directory refuses it."""
     ours = {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
-    run.remove_leftovers()  # a killed write's temporary
-    names = run.names()
+    leftovers = {p.name for p in leftover_temporaries(run.path)}  # a killed write's temporaries
+    names = run.names() - leftovers
     extra = {n for n in names - ours if not re.fullmatch(r"selected-\d+\.zip", n)}  # SELECTED_MODEL_PATTERN
     if not run.is_run or run.read_record().get("kind") != "rl" or extra:
         raise RunError(f"{run} is not an RL run directory; --overwrite replaces only an RL run")
-    for name in names:
-        run.file(name).unlink()
+    run.remove_leftovers()
+    for name in sorted(names - {RUN_FILE}) + [RUN_FILE]:  # run.json last: a kill leaves an RL run
+        run.file(name).unlink(missing_ok=True)
 
 
 @writes("training")  # one writer at a time
