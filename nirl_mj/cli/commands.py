@@ -362,10 +362,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
         _check_output(args.rerun, args.overwrite)
     if subject.run:
         subject.run.read_evaluations()  # a corrupt eval.json fails now, not after the evaluation
-        with DirectoryLock(subject.run.file(EVAL_FILE), "eval", wait=True):
-            pass  # a file system without locks fails now too
         if not os.access(subject.run.path, os.W_OK):
             raise RunError(f"{subject.run.path} is not writable: eval stores its result in eval.json there")
+        with DirectoryLock(subject.run.file(EVAL_FILE), "eval", wait=True):
+            pass  # a file system without locks fails now too
     seeds = subject.test_seeds(args.seed, args.tests)
     backend = _backend(args)
     warp = backend.name != "cpu"
