@@ -268,7 +268,8 @@ def _clear_rl_run(run: RunDir) -> None:
     ours = {RUN_FILE, MODEL_FILE, SELECTED_MODEL_FILE, EVAL_FILE, DISCRIMINATOR_FILE}
     leftovers = {p.name for p in leftover_temporaries(run.path)}  # a killed write's temporaries
     names = run.names() - leftovers
-    extra = {n for n in names - ours if not re.fullmatch(r"selected-\d+\.zip", n)}  # SELECTED_MODEL_PATTERN
+    selected = re.escape(SELECTED_MODEL_PATTERN).replace(re.escape("{steps}"), r"\d+")
+    extra = {n for n in names - ours if not re.fullmatch(selected, n)}
     if not run.is_run or run.read_record().get("kind") != "rl" or extra:
         raise RunError(f"{run} is not an RL run directory; --overwrite replaces only an RL run")
     run.remove_leftovers()
