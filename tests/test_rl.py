@@ -378,6 +378,45 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
         rl.tuned("ppo", {"lr_schedule": "cosine"})
 
 
+def test_act_greedy_drives_validation_and_tests_by_the_mode_and_trains_as_sampled(tmp_path, monkeypatch):
+    import torch
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.sim.task import make_env
+
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    runs = {act: tmp_path / act for act in ("sampled", "greedy")}
+    records = {act: rl.train_rl(run, OPEN, "ppo", 1024, seed=3, checkpoint_every=512, envs=2,
+                                selection="validation_success", changes={"act": act})  # fmt: skip
+               for act, run in runs.items()}  # fmt: skip
+    assert records["greedy"]["config"]["act"] == "greedy"
+    assert "act" not in rl._model_settings(records["greedy"]["config"])  # not a setting of PPO's
+    models = {act: sb3.PPO.load(run / "model.zip", device="cpu") for act, run in runs.items()}
+    # the same training: act changes how validation and tests drive, nothing else
+    for a, b in zip(models["sampled"].policy.parameters(), models["greedy"].policy.parameters(), strict=True):
+        assert torch.equal(a, b)
+    # validation drove the greedy run's checkpoint by its mode, as its tests (eval) do
+    env = make_env(OPEN)
+    greedy = rl.model_policy(models["greedy"], records["greedy"], sampled=False, seed=3, shares=True)
+    scored = evaluate(env, greedy, records["greedy"]["validation_seeds"])[0]["success_rate"]
+    assert scored == records["greedy"]["scores"][-1]["score"]
+    loaded, _ = rl.load_rl_policy(runs["greedy"], policy="last", shares=True)
+    rng = np.random.default_rng(0)
+    for phi in rng.uniform(0, 1, (20, 16)) * rl.feature_bounds()[1]:
+        mode, _ = models["greedy"].predict(rl.scaled(phi), deterministic=True)
+        assert loaded(phi) == int(mode)
+    # a run that does not set act is driven sampled, as runs recorded before the setting existed
+    assert "act" not in rl.run_config("ppo", "validation_success", 2)
+    sampled, _ = rl.load_rl_policy(runs["sampled"], policy="last", seed=5, shares=True)
+    again = rl.model_policy(models["sampled"], {**records["sampled"], "config": {}}, None, 5, True)
+    draws = [(sampled(phi), again(phi)) for phi in rng.uniform(0, 1, (50, 16)) * rl.feature_bounds()[1]]
+    assert all(a == b for a, b in draws) and len({a for a, _ in draws}) > 1  # drawn, not the mode
+    with pytest.raises(ValueError, match="settings.act = 'mode': accepted: sampled, greedy"):
+        rl.tuned("ppo", {"act": "mode"})
+
+
 def test_train_drive_drives_the_training_episodes_only_and_a_resume_keeps_it(tmp_path, monkeypatch):
     from helpers import OPEN
 

@@ -5,8 +5,9 @@ its run's own test arenas (the experiment's, as its cells drew them): does the s
 
 TASK is the experiment file and OUT its ``--out``; every run must be finished. The selected
 checkpoint's success must equal its cell's (checked: the same arenas and the same seeded sampling);
-prints, per method, each run's selected and last success (percent) and their averages. ``--mode``
-adds the selected checkpoint driven by its policy's mode instead of samples from it.
+prints, per method, each run's selected and last success (percent), both driven as the run's tests
+drive it (its ``act`` setting), and their averages. ``--mode`` adds the selected checkpoint driven by
+its policy's mode.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ def _rates(task_file: str, out: str, method: str, run: int, mode: bool = False) 
     job = run_jobs(experiment, Path(out), {run: demos_path(Path(out), experiment, run)})[method, run]
     cell = json.loads((Path(out) / "cells" / f"{cell_id(method, run)}.json").read_text())["result"]
     rates = [cell["success_rate"]]
-    for which, sampled in (("selected", True), ("last", True), *((("selected", False),) if mode else ())):
+    for which, sampled in (("selected", None), ("last", None), *((("selected", False),) if mode else ())):
         policy, _ = load_rl_policy(job.run_dir, policy=which, sampled=sampled)
         rates.append(evaluate_policy(policy, job.task, job.test_seeds, method)["success_rate"])
     return (run, *rates)

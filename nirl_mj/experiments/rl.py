@@ -108,9 +108,12 @@ TUNABLE = {"learning_rate": (float, 0.0, None), "n_epochs": (int, 1, None), "bat
 """PPO's settings an experiment may change (``[method.NAME] settings = {...}``): (type, lowest, highest);
 a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0; and the words of
 :data:`CHOICES`."""
-CHOICES = {"lr_schedule": ("constant", "linear")}
+CHOICES = {"lr_schedule": ("constant", "linear"), "act": ("sampled", "greedy")}
 """PPO's settings that take a word: ``lr_schedule`` ``linear`` decays ``learning_rate`` linearly to 0
-at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`` keeps it."""
+at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`` keeps it; ``act``,
+how validation and tests drive a discrete PPO policy (:func:`model_policy`): ``sampled`` (the
+default) draws each action from its distribution, ``greedy`` takes its mode. Training is the same
+either way."""
 CHECKPOINT_EVERY = 5_000
 """Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
@@ -238,7 +241,7 @@ def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
 def _model_settings(config: dict) -> dict:
     """The keyword arguments of the algorithm's constructor from a run's config: its own keys
     dropped, ``lr_schedule`` turned into the learning rate's schedule."""
-    own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive")
+    own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive", "act")
     settings = {k: v for k, v in config.items() if k not in own}
     if config.get("lr_schedule") == "linear":
         from stable_baselines3.common.utils import LinearSchedule
@@ -256,7 +259,7 @@ def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int
     env = make_env(task)
 
     def score() -> float:
-        policy = model_policy(model, record, sampled=True, seed=seed, shares=True)
+        policy = model_policy(model, record, sampled=None, seed=seed, shares=True)
         metrics, _ = evaluate(env, policy, record["validation_seeds"], name="validation")
         return float(metrics["success_rate"])
 
@@ -504,7 +507,7 @@ def _twist_scale(model, record: dict) -> np.ndarray | None:
 
 def load_rl_policy(
     run_dir: str | os.PathLike,
-    sampled: bool = True,
+    sampled: bool | None = None,
     seed: int = 0,
     policy: str = "selected",
     shares: bool = False,
@@ -512,12 +515,10 @@ def load_rl_policy(
     """The trained RL policy on phi(s) and the run's record: the checkpoint its selection chose
     (``policy="selected"``; the last one for a run that selects none) or the last (``"last"``).
 
-    PPO's policy is a distribution over the six actions; with ``sampled`` (the default for PPO)
-    each action is drawn from it with a generator seeded by ``seed``, so an evaluation is
-    reproducible. Its mode (``sampled=False``) is a poor driver here: measured on 100 held-out
-    arenas of navigate after 50,000 decisions, the mode alternates right60/left30 and circles
-    3-5 m from the target (0 % success), where sampling reaches the target
-    (docs/notebook/results.md). DQN, and PPO with continuous actions, act by their deterministic mode:
+    PPO's policy is a distribution over the six actions; with ``sampled`` each action is drawn from
+    it with a generator seeded by ``seed``, so an evaluation is reproducible; ``sampled=False`` takes
+    its mode; ``None`` (the default) drives as the run's setting ``act`` says (:data:`CHOICES`;
+    ``sampled`` unless set). DQN, and PPO with continuous actions, act by their deterministic mode:
     a continuous action in m/s and rad/s, or with ``shares`` as the float32 shares in [-1, 1] that
     ``sim.episode.run_episode`` (``nirl-mj eval``) and the Gymnasium environment take."""
     run = RunDir(run_dir)
@@ -534,10 +535,12 @@ def load_rl_policy(
 
 
 def model_policy(
-    model: Any, record: dict, sampled: bool, seed: int, shares: bool
+    model: Any, record: dict, sampled: bool | None, seed: int, shares: bool
 ) -> Callable[[np.ndarray], int | np.ndarray]:
     """``model``'s policy on phi(s) as :func:`load_rl_policy` describes it (``record``: its run's, or
-    any dict with the ``algo`` and the task's ``control.actions``)."""
+    any dict with the ``algo``, the task's ``control.actions`` and, where set, ``config.act``)."""
+    if sampled is None:
+        sampled = record.get("config", {}).get("act", "sampled") == "sampled"
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )
