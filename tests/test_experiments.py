@@ -223,6 +223,19 @@ def test_quick_errors_say_they_come_from_the_quick_table():
     from_dict({"kind": "compare", "quick": {"runs": 0}}, "e.toml")  # not used without --quick
 
 
+def test_a_method_table_of_a_method_that_quick_leaves_out_is_kept_for_the_full_run():
+    pinned = {"kind": "rl", "algo": "ppo", "selection": "training_success"}
+    data = {"kind": "compare", "methods": ["rule", "PPO-reward"], "quick": {"methods": ["rule"]},
+            "method": {"PPO-reward": pinned}}  # fmt: skip
+    assert [m.name for m in from_dict(data, "e.toml", quick=True).methods] == ["rule"]
+    assert from_dict(data, "e.toml").methods[1].selection == "training_success"
+    # a table that names no method of the file is still refused, quick or not
+    other = {**data, "method": {**data["method"], "PPO-rewrd": {"kind": "rl"}}}
+    for quick in (False, True):
+        with pytest.raises(ExperimentError, match="method: PPO-rewrd defined but not in methods"):
+            from_dict(other, "e.toml", quick=quick)
+
+
 def test_own_methods_change_the_learner():
     e = from_dict({"kind": "compare", "methods": ["NIRL", "low-margin", "BC"], "config": {"episodes": 7},
                    "method": {"low-margin": {"variant": "default", "config": {"margin_loss": 0.05}},

@@ -353,6 +353,7 @@ def from_dict(
     _known(data, KEYS[kind], source, f"(kind {kind})")
     overrides = _table(data.get("quick", {}), f"{source}: quick")
     _known(overrides, [k for k in KEYS[kind] if k not in ("kind", "quick")], f"{source}: quick", "")
+    full_methods = data.get("methods", ["NIRL"])
     if quick:
         data = _merge(data, overrides)
     quick_keys = data.get("quick", {}) if quick else {}
@@ -374,7 +375,7 @@ def from_dict(
     _known(demos, DEMO_KEYS, where("demos"), "")
     expert = _choice(demos.get("expert", "sensor"), demonstrator_names(), f"{where('demos')}.expert")
     config = _learner_changes(_table(data.get("config", {}), where("config")), where("config"))
-    methods = _methods(data, config, where)
+    methods = _methods(data, config, where, full_methods)
 
     strip = None
     if "strip" in data:
@@ -500,7 +501,9 @@ def check_actions(methods: Sequence[MethodSpec], tasks: Sequence[specs.TaskSpec]
         )
 
 
-def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
+def _methods(data: dict, config: dict, where, full_methods: list) -> tuple[MethodSpec, ...]:
+    """The listed methods resolved; a ``[method.NAME]`` table must name one of them, or one of
+    ``full_methods`` (the file's list, which ``[quick] methods`` may shorten)."""
     defined = _table(data.get("method", {}), where("method"))
     names = _list(data.get("methods", ["NIRL"]), where("methods"))
     if not names:
@@ -517,7 +520,7 @@ def _methods(data: dict, config: dict, where) -> tuple[MethodSpec, ...]:
         out.append(_method(name, defined.get(name), config, f"{where('method')}.{name}"))
     if len(set(names)) != len(names):
         raise ExperimentError(f"{where('methods')}: a method is listed twice: {names}")
-    unused = sorted(set(defined) - set(names))
+    unused = sorted(set(defined) - set(names) - set(full_methods if isinstance(full_methods, list) else []))
     if unused:
         raise ExperimentError(f"{where('method')}: {', '.join(unused)} defined but not in methods = {names}")
     return tuple(out)
