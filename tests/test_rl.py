@@ -239,9 +239,10 @@ def test_the_table_rows_of_ppo_gail_and_airl_select_and_say_what_they_read():
     from nirl_mj.experiments.reads import method_reads
 
     rows = {m.name: m for m in experiment.methods}
-    assert rows["PPO-reward"].selection == "training_success" and "task_success_selection" in method_reads(
+    assert rows["PPO-reward"].selection == "validation_success" and "task_success_selection" in method_reads(
         rows["PPO-reward"]
     )
+    assert rows["PPO-reward"].settings["act"] == "greedy"  # validated and tested by its mode
     assert rows["GAIL"].selection == rows["AIRL"].selection == "demo_balanced"
     assert "task_success_selection" not in method_reads(rows["GAIL"])
     identity = {m["name"]: m for m in experiment.identity()["methods"]}
