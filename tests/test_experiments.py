@@ -234,6 +234,10 @@ def test_a_method_table_of_a_method_that_quick_leaves_out_is_kept_for_the_full_r
     for quick in (False, True):
         with pytest.raises(ExperimentError, match="method: PPO-rewrd defined but not in methods"):
             from_dict(other, "e.toml", quick=quick)
+        # and the kept table is checked in a quick load too
+        broken = {**data, "method": {"PPO-reward": {**pinned, "selection": "best"}}}
+        with pytest.raises(ExperimentError, match="selection"):
+            from_dict(broken, "e.toml", quick=quick)
 
 
 def test_own_methods_change_the_learner():

@@ -522,7 +522,10 @@ def _methods(data: dict, config: dict, where, full_methods: list) -> tuple[Metho
         out.append(_method(name, defined.get(name), config, f"{where('method')}.{name}"))
     if len(set(names)) != len(names):
         raise ExperimentError(f"{where('methods')}: a method is listed twice: {names}")
-    unused = sorted(set(defined) - set(names) - set(full_methods if isinstance(full_methods, list) else []))
+    listed = {n for n in full_methods if isinstance(n, str)} if isinstance(full_methods, list) else set()
+    for name in sorted((set(defined) - set(names)) & listed):  # kept for the full run, checked all the same
+        _method(name, defined[name], config, f"{where('method')}.{name}")
+    unused = sorted(set(defined) - set(names) - listed)
     if unused:
         raise ExperimentError(f"{where('method')}: {', '.join(unused)} defined but not in methods = {names}")
     return tuple(out)
