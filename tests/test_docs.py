@@ -198,6 +198,19 @@ def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
         paired(results, "rule", "DQN")
 
 
+def test_rl_free_actions_reads_each_free_state_by_sector_and_flag():
+    """docs/scripts/rl_free_actions.py: the 18 free states are V = 1..9 with I = 0, then with I = 1,
+    every danger and wall feature 0; a policy's actions come back as letters in that order."""
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "rl_free_actions.py"))
+    states = script["free_states"]()
+    assert states.shape == (18, 16) and not states[:, :7].any() and not states[:, 9:].any()
+    assert states[:, 7].tolist() == [*range(1, 10)] * 2 and states[:, 8].tolist() == [0] * 9 + [1] * 9
+    # forward with I = 0; with I = 1, sector 1 forward, 2-3 left30, 4-5 left60, 6-7 right60, 8-9 right30
+    by_sector = {1: 0, 2: 1, 3: 1, 4: 2, 5: 2, 6: 4, 7: 4, 8: 3, 9: 3}
+    line = script["actions_line"](lambda phi: by_sector[int(phi[7])] if phi[8] else 0)
+    assert line == "FFFFFFFFF | FllLLRRrr"
+
+
 def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
     """docs/scripts/suite_versus.py: first minus second per (axis, value) over the runs both hold, on a
     hand-computed case; the stored suites and their decaying-step predecessors share BC's rows
