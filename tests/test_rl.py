@@ -379,6 +379,54 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
         rl.tuned("ppo", {"lr_schedule": "cosine"})
 
 
+def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_the_same(tmp_path, monkeypatch):
+    """Scripted validation outcomes (4 arenas, 4 checkpoints): a checkpoint stops once its successes
+    plus the arenas left fall below the best so far, records no score but the most it could have
+    scored and the arenas it drove, and the run keeps the same checkpoint as one that drives every
+    arena."""
+    from types import SimpleNamespace
+
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.sim import episode
+
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 4)
+    script = ["TTCC", "CCTT", "CCCC", "TTTC"]  # T arrives, C collides; per checkpoint, per arena
+    model_policy = rl.model_policy
+
+    def run(cut: bool) -> tuple[dict, list[tuple[int, int]]]:
+        driven, checkpoint = [], [-1]
+
+        def counting_policy(*args, **kwargs):
+            checkpoint[0] += 1
+            return model_policy(*args, **kwargs)
+
+        def scripted_episode(env, agent, arena):
+            k = record_seeds.index(arena)
+            driven.append((checkpoint[0], k))
+            return SimpleNamespace(outcome="target" if script[checkpoint[0]][k] == "T" else "collision")
+
+        monkeypatch.setattr(rl, "VALIDATION_CUT", cut)
+        monkeypatch.setattr(rl, "model_policy", counting_policy)
+        monkeypatch.setattr(episode, "run_episode", scripted_episode)
+        record = rl.train_rl(tmp_path / str(cut), OPEN, "dqn", 128, seed=0, checkpoint_every=32,
+                             selection="validation_success")  # fmt: skip
+        return record, driven
+
+    from nirl_mj.experiments.seeds import domain_seed
+
+    record_seeds = [domain_seed("validation", 0, k) for k in range(4)]
+    full, every = run(cut=False)
+    cut, some = run(cut=True)
+    assert [s["score"] for s in full["scores"]] == [0.5, 0.5, 0.0, 0.75] and len(every) == 16
+    # checkpoint 2 stops after its third collision: 0 + 1 arena left < the 2 successes of the best
+    assert [s["score"] for s in cut["scores"]] == [0.5, 0.5, None, 0.75] and len(some) == 15
+    assert (cut["scores"][2]["at_most"], cut["scores"][2]["driven"]) == (0.25, 3)
+    assert all("driven" not in s and "at_most" not in s for s in full["scores"])
+    assert cut["selected"] == full["selected"] and cut["selected"]["steps"] == 128
+
+
 def test_act_greedy_drives_validation_and_tests_by_the_mode_and_trains_as_sampled(tmp_path, monkeypatch):
     import torch
     from helpers import OPEN

@@ -5,7 +5,8 @@ their run records into one JSON file (``checkpoint_scores.json`` of docs/results
 
 OUT is the experiment's ``--out``; its runs are OUT/runs/METHOD/SEED/run.json, run r of seed
 ``experiment seed + r``. Writes ``{method: {run: {"selected": ..., "scores": [...]}}}`` (each score:
-the decisions trained, the score, and for ``training_success`` the episodes it averages), atomically.
+the decisions trained, the score, the episodes it is over; a validation cut short has a null score,
+``at_most`` and ``driven``: ``nirl_mj.experiments.rl.SELECTIONS``), atomically.
 A run still training is copied as far as it went; a method with no RL run is left out.
 """
 

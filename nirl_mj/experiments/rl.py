@@ -82,8 +82,11 @@ accuracy on the demonstrations; GAIL and AIRL, which read them anyway); ``traini
 task's success over the last :data:`SUCCESS_WINDOW` training episodes that ended before the
 checkpoint (every one on a fresh arena); ``validation_success``, the checkpoint's own success, as
 the tests drive it, on the same :data:`VALIDATION_ARENAS` arenas of the validation domain at every
-checkpoint (paired: the same arenas and the same sampling stream). The last two read the task's
-success (recorded as ``task_success_selection``): for PPO and DQN, which read its reward anyway.
+checkpoint (paired: the same arenas and the same sampling stream), stopping once it can no longer
+reach the best score so far (:func:`_validation_scorer`: its entry in the record then has no
+``score`` (null), ``at_most``, the most it could have reached, and ``driven``, the arenas it
+drove). The last two read the task's success (recorded as ``task_success_selection``): for PPO and
+DQN, which read its reward anyway.
 The best score wins, the later checkpoint on a tie (the rule of every method:
 ``nirl_mj.learn.selection``)."""
 VALIDATION_ARENAS = 20
@@ -250,20 +253,43 @@ def _model_settings(config: dict) -> dict:
     return settings
 
 
-def _validation_scorer(model: Any, record: dict, task: specs.TaskSpec, seed: int) -> Callable[[], float]:
+def _validation_scorer(
+    model: Any, record: dict, task: specs.TaskSpec, seed: int
+) -> Callable[[float | None], tuple[float, int]]:
     """The checkpoint's success on the run's validation arenas, driven as the tests drive it
-    (selection validation_success): the same arenas and the same sampling stream every time."""
-    from nirl_mj.experiments.evaluation import evaluate
+    (selection validation_success): the same arenas and the same sampling stream every time.
+
+    ``score(best)`` returns (success, arenas driven). Given ``best``, the best score so far, it
+    stops once the checkpoint can no longer reach it: the arenas left cannot change the selection
+    (the best score wins, the later checkpoint on a tie), so they are not driven, and the success
+    returned is then the most the checkpoint could have scored, below ``best``
+    (:data:`VALIDATION_CUT`: False drives every arena)."""
+    from nirl_mj.data.outcomes import outcome_rates
+    from nirl_mj.experts.policies import PolicyAgent
+    from nirl_mj.sim.episode import run_episode
     from nirl_mj.sim.task import make_env
 
     env = make_env(task)
+    seeds = record["validation_seeds"]
 
-    def score() -> float:
-        policy = model_policy(model, record, sampled=None, seed=seed, shares=True)
-        metrics, _ = evaluate(env, policy, record["validation_seeds"], name="validation")
-        return float(metrics["success_rate"])
+    def score(best: float | None = None) -> tuple[float, int]:
+        agent = PolicyAgent(model_policy(model, record, sampled=None, seed=seed, shares=True), "validation")
+        needed = None if best is None or not VALIDATION_CUT else round(best * len(seeds))
+        successes = 0
+        for driven, arena in enumerate(seeds, start=1):
+            # counted as the tests' metrics count it (data.outcomes)
+            successes += int(outcome_rates([run_episode(env, agent, arena).outcome])["success_rate"])
+            reachable = successes + len(seeds) - driven
+            if needed is not None and reachable < needed:
+                return reachable / len(seeds), driven
+        return successes / len(seeds), len(seeds)
 
     return score
+
+
+VALIDATION_CUT = True
+"""Whether ``validation_success`` stops driving a checkpoint that can no longer reach the best score
+so far (:func:`_validation_scorer`); the selection is the same either way (a test checks it)."""
 
 
 def _clear_rl_run(run: RunDir) -> None:
@@ -396,8 +422,10 @@ def train_rl(
         run.write_model(model.save)
         steps_now = int(model.num_timesteps)
         best = record.get("selected")
-        score = None
-        if scorer is not None:
+        score, driven = None, None
+        if selection == "validation_success":
+            score, driven = scorer(None if best is None else best["score"])
+        elif scorer is not None:
             score = scorer()
         elif selection == "training_success" and outcomes:
             score = float(np.mean(outcomes))
@@ -406,6 +434,9 @@ def train_rl(
             # the episodes the score is over: the validation arenas, the demonstrations, or the window
             over = {"validation_success": VALIDATION_ARENAS, "demo_balanced": len(trajectories)}
             entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
+            if driven is not None and driven < entry["episodes"]:
+                # cut short, it cannot be kept: no score, the most it could have reached, the arenas driven
+                entry.update(score=None, at_most=score, driven=driven)
             record["scores"] = [*record.get("scores", []), entry]
             unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
             if best is None or unscored or (score >= best["score"] and steps_now > best["steps"]):
