@@ -357,6 +357,7 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
     from nirl_mj.sim.task import make_env
 
     monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    monkeypatch.setattr(rl, "VALIDATION_CUT", False)  # every checkpoint scored in full, to compare below
     run = tmp_path / "run"
     changes = {"lr_schedule": "linear", "target_kl": 0.05}
     record = rl.train_rl(run, OPEN, "ppo", 1024, seed=3, checkpoint_every=512, envs=2,
@@ -436,6 +437,7 @@ def test_act_greedy_drives_validation_and_tests_by_the_mode_and_trains_as_sample
     from nirl_mj.sim.task import make_env
 
     monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    monkeypatch.setattr(rl, "VALIDATION_CUT", False)  # every checkpoint scored in full, to compare below
     runs = {act: tmp_path / act for act in ("sampled", "greedy")}
     records = {act: rl.train_rl(run, OPEN, "ppo", 1024, seed=3, checkpoint_every=512, envs=2,
                                 selection="validation_success", changes={"act": act})  # fmt: skip

@@ -274,7 +274,8 @@ def _validation_scorer(
 
     def score(best: float | None = None) -> tuple[float, int]:
         agent = PolicyAgent(model_policy(model, record, sampled=None, seed=seed, shares=True), "validation")
-        needed = None if best is None or not VALIDATION_CUT else round(best * len(seeds))
+        cut = VALIDATION_CUT and best is not None and best == best  # a NaN best is replaced by any score
+        needed = round(best * len(seeds)) if cut else None
         successes = 0
         for driven, arena in enumerate(seeds, start=1):
             # counted as the tests' metrics count it (data.outcomes)
@@ -432,14 +433,15 @@ def train_rl(
         replaced = None
         if score is not None:
             # the episodes the score is over: the validation arenas, the demonstrations, or the window
-            over = {"validation_success": VALIDATION_ARENAS, "demo_balanced": len(trajectories)}
+            over = {"validation_success": len(record["validation_seeds"]), "demo_balanced": len(trajectories)}
             entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
             if driven is not None and driven < entry["episodes"]:
                 # cut short, it cannot be kept: no score, the most it could have reached, the arenas driven
                 entry.update(score=None, at_most=score, driven=driven)
             record["scores"] = [*record.get("scores", []), entry]
             unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
-            if best is None or unscored or (score >= best["score"] and steps_now > best["steps"]):
+            better = best is None or unscored or (score >= best["score"] and steps_now > best["steps"])
+            if better and entry["score"] is not None:  # a checkpoint cut short cannot be kept
                 # a file per selected checkpoint, named in the record: a kill between the two writes
                 # leaves the record naming a file that holds what it says
                 name = SELECTED_MODEL_PATTERN.format(steps=steps_now)
