@@ -390,10 +390,12 @@ def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_th
     from helpers import OPEN
 
     from nirl_mj.experiments import rl
+    from nirl_mj.experiments.seeds import domain_seed
     from nirl_mj.sim import episode
 
     monkeypatch.setattr(rl, "VALIDATION_ARENAS", 4)
     script = ["TTCC", "CCTT", "CCCC", "TTTC"]  # T arrives, C collides; per checkpoint, per arena
+    arenas = [domain_seed("validation", 0, k) for k in range(4)]  # the run's validation arenas (seed 0)
     model_policy = rl.model_policy
 
     def run(cut: bool) -> tuple[dict, list[tuple[int, int]]]:
@@ -404,7 +406,7 @@ def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_th
             return model_policy(*args, **kwargs)
 
         def scripted_episode(env, agent, arena):
-            k = record_seeds.index(arena)
+            k = arenas.index(arena)
             driven.append((checkpoint[0], k))
             return SimpleNamespace(outcome="target" if script[checkpoint[0]][k] == "T" else "collision")
 
@@ -415,9 +417,6 @@ def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_th
                              selection="validation_success")  # fmt: skip
         return record, driven
 
-    from nirl_mj.experiments.seeds import domain_seed
-
-    record_seeds = [domain_seed("validation", 0, k) for k in range(4)]
     full, every = run(cut=False)
     cut, some = run(cut=True)
     assert [s["score"] for s in full["scores"]] == [0.5, 0.5, 0.0, 0.75] and len(every) == 16
