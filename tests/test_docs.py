@@ -196,6 +196,14 @@ def test_paired_runs_takes_any_two_methods_as_the_tables_take_the_first():
     assert flipped["mean"] == pytest.approx(-mine["mean"]) and flipped["better"] == mine["worse"]
     with pytest.raises(SystemExit, match="no method 'DQN'"):
         paired(results, "rule", "DQN")
+    # the second method from another file: here one whose rule row is shifted by 1 point in run 0
+    shifted = json.loads(json.dumps(results))
+    shifted["methods"]["rule"]["by_run"]["0"] -= 0.01
+    against = paired(results, "rule", "rule", shifted)
+    assert against["mean"] == pytest.approx(0.01 / len(results["methods"]["rule"]["by_run"]))
+    assert (against["better"], against["worse"]) == (1, 0)
+    with pytest.raises(SystemExit, match="no method 'NIRL-x'"):
+        paired(results, "rule", "NIRL-x", shifted)
 
 
 def test_rl_free_actions_reads_each_free_state_by_sector_and_flag():

@@ -159,7 +159,8 @@ BUILTIN_METHODS = {
     # and tests, its checkpoint chosen by success on 20 validation arenas (it reads the task's reward
     # anyway); budget and learning rate tuned on the development domain
     # (tasks/ablations/rl_reference.toml), greedy driving and the selection there too
-    # (tasks/ablations/rl_greedy.toml: sampled, it collided in 13-16 % of the tests there)
+    # (tasks/ablations/rl_greedy.toml: sampled, it collided in 13-16 % of the tests there), and the
+    # learning rate decayed linearly to 0 (tasks/ablations/rl_schedule.toml: its mode fell less)
     "PPO-reward": MethodSpec(
         "PPO-reward",
         "rl",
@@ -167,7 +168,7 @@ BUILTIN_METHODS = {
         steps=2 * RL_STEPS,
         selection="validation_success",
         envs=RL_ENVS,
-        settings={"learning_rate": 1e-4, "act": "greedy"},
+        settings={"learning_rate": 1e-4, "lr_schedule": "linear", "act": "greedy"},
     ),  # fmt: skip
     # the same reference by DQN (experiments.rl.SETTINGS["dqn"], one environment), acting greedily on its
     # Q-values as NIRL and the rule do; its checkpoint chosen by success on 20 validation arenas,
