@@ -65,6 +65,16 @@ def test_train_then_eval_from_the_command_line(tmp_path, capsys):
         assert key in result
     assert result["tests"] == 3
     assert len(json.loads((run / "eval.json").read_text())) == 1
+    # the same evaluation again is refused unless asked; one under --set is stored beside it
+    before = (run / "eval.json").read_bytes()
+    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 2
+    assert "already holds the evaluation" in capsys.readouterr().err
+    assert (run / "eval.json").read_bytes() == before
+    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet", "--overwrite"]) == 0
+    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet", "--set", "control.speed=1.5"]) == 0
+    evaluations = json.loads((run / "eval.json").read_text())
+    assert [e.get("set") for e in evaluations.values()] == [None, ["control.speed=1.5"]]
+    capsys.readouterr()
     assert main(["eval", "--run", str(tmp_path), "--quiet"]) == 2
     assert "not a nirl-mj run directory" in capsys.readouterr().err
 

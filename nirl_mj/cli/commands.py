@@ -360,15 +360,22 @@ def cmd_eval(args: argparse.Namespace) -> int:
     _no_rerun_of_continuous(args, spec)
     if args.rerun:
         _check_output(args.rerun, args.overwrite)
+    backend = _backend(args)
+    warp = backend.name != "cpu"
+    # --set changes the task but not its name: the key names the overrides, so that an evaluation
+    # under other settings never takes the plain one's place
+    key = (f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}" + ("|backend=warp" if warp else "")
+           + "".join(f"|set {override}" for override in args.set or ()))  # fmt: skip
     if subject.run:
-        subject.run.read_evaluations()  # a corrupt eval.json fails now, not after the evaluation
+        # a corrupt eval.json, or an evaluation already there, fails now, not after the evaluation
+        if key in subject.run.read_evaluations() and not args.overwrite:
+            raise RunError(f"{subject.run.file(EVAL_FILE)} already holds the evaluation {key!r}: give "
+                           "--overwrite to replace it, or another --seed or --tests")  # fmt: skip
         if not os.access(subject.run.path, os.W_OK):
             raise RunError(f"{subject.run.path} is not writable: eval stores its result in eval.json there")
         with DirectoryLock(subject.run.file(EVAL_FILE), "eval", wait=True):
             pass  # a file system without locks fails now too
     seeds = subject.test_seeds(args.seed, args.tests)
-    backend = _backend(args)
-    warp = backend.name != "cpu"
     rollouts = make_rollouts(backend, spec) if warp else None
     with _bar(args, args.tests, "test") as bar:
         env = None if warp else make_env(spec)
@@ -380,8 +387,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "policy": args.which if args.run else args.policy,
         **({"backend": backend.to_dict()} if warp else {}),
+        **({"set": list(args.set)} if args.set else {}),
     }
-    key = f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}" + ("|backend=warp" if warp else "")
     if subject.run:
         subject.run.add_evaluation(key, result)
     print(evaluation_line(spec.name, metrics))

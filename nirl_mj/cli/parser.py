@@ -224,7 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's policy on held-out arenas", "json",
-                 "quiet", "overwrite", "backend=the test episodes",
+                 "quiet", "overwrite=an existing --rerun file, and the same evaluation in RUN/eval.json",
+                 "backend=the test episodes",
                  "rerun=every test episode (with r_theta and the reward map for --run)",
                  task="the run's own; with --policy navigate")  # fmt: skip
     who = p.add_mutually_exclusive_group(required=True)
