@@ -36,9 +36,11 @@ class Walker:
     reads = ("demonstrations", "features", "episode_end")
     observation = "features"
 
-    def __init__(self, action=0, episodes=2, arena=None, shape=None, forked=False):
+    def __init__(self, action=0, episodes=2, arena=None, shape=None, forked=False, reads=None):
         self.action, self.episodes, self.arena, self.shape = action, episodes, arena, shape
         self.forked = forked
+        if reads is not None:
+            self.reads = tuple(reads)
 
     def train(self, demonstrations, make_env, budget, seed, workdir):
         if self.forked:  # environments in forked processes: the budget is copied without pickling
@@ -50,7 +52,8 @@ class Walker:
             finally:
                 vector.close(terminate=True)
         env = make_env()
-        seen = {"rewards": [], "infos": [], "shape": list(demonstrations["observations"].shape)}
+        shape = None if demonstrations is None else list(demonstrations["observations"].shape)
+        seen = {"rewards": [], "infos": [], "shape": shape}
         for _ in range(self.episodes):
             obs, info = env.reset(seed=self.arena)
             seen["infos"].append(info)
@@ -156,12 +159,23 @@ def test_an_installed_method_runs_in_an_experiment_within_the_protocols_rules(in
     assert rows["Walker"]["runs"] == "2"
 
 
+def test_a_method_that_does_not_declare_the_demonstrations_is_not_given_them(installed, tmp_path):
+    reads = '["features", "episode_end"]'
+    path = spec(tmp_path, '["Walker"]', f"[method.Walker]\nsettings = {{ reads = {reads} }}\n")
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 0
+    assert json.loads((tmp_path / "out" / "runs" / "Walker" / "0" / "seen.json").read_text())["shape"] is None
+
+
 @pytest.mark.parametrize(
     ("settings", "message"),
     [
         ("{ arena = TEST }", "method 'Walker' asked for arena TEST, one of its run's test arenas"),
         ("{ shape = 6 }", "method 'Walker': its policy answered an observation of shape (16,) with"),
         ("{ episodes = 50 }", "method 'Walker' drove more than its budget of 200 decisions"),
+        (
+            '{ reads = ["demonstrations", "features"] }',
+            "method 'Walker' drives the robot (make_env): declare episode_end in its reads",
+        ),
         pytest.param(
             "{ forked = true }",
             "method 'Walker': its environments run in this process (a process vector",

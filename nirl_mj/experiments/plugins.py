@@ -16,10 +16,11 @@ or an instance) has, in plain Python, NumPy and Gymnasium types (docs/EXTENDING.
   observation="features")`` gives it);
 - ``train(demonstrations, make_env, budget, seed, workdir) -> policy``: ``demonstrations`` a dict of
   arrays (``observations`` (N, 16) float32, ``actions`` (N,) int64, ``next_observations`` (N, 16),
-  ``episode`` (N,) int64, ``terminals`` (N,) bool: the episode ended there by arrival,
-  collision or physics error); ``make_env()`` a Gymnasium environment on the run's training
-  arenas; ``budget`` the decisions it may drive in all its environments together; ``workdir`` a
-  directory of its own (checkpoints); ``policy(observation) -> action`` in 0..5.
+  ``episode`` (N,) int64, ``terminals`` (N,) bool: the episode ended there by arrival, collision or
+  physics error), None unless ``reads`` holds ``demonstrations``; ``make_env()`` a Gymnasium
+  environment on the run's training arenas, refused unless ``reads`` holds ``episode_end``;
+  ``budget`` the decisions it may drive in all its environments together; ``workdir`` a directory of
+  its own (checkpoints); ``policy(observation) -> action`` in 0..5.
 
 The protocol keeps the rest (for a method that plays by the interface: one that reaches past the
 wrapper, ``env.unwrapped``, is not stopped): the environments draw their arenas from the run's training stream
@@ -245,6 +246,9 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     made = []
 
     def make_env():
+        if "episode_end" not in reads:  # a driven episode's end is the dynamics it reads
+            raise MethodError(f"method {job.method.name!r} drives the robot (make_env): declare "
+                              "episode_end in its reads")  # fmt: skip
         try:
             made.append(protocol_env(job.task, budget, reads))
         except ModuleNotFoundError as exc:
@@ -259,7 +263,8 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
         return made[-1]
 
     try:
-        policy = method.train(demonstrations=demos, make_env=make_env, budget=job.method.steps, seed=job.seed,
+        given = demos if "demonstrations" in reads else None
+        policy = method.train(demonstrations=given, make_env=make_env, budget=job.method.steps, seed=job.seed,
                               workdir=str(workdir))  # fmt: skip
     finally:
         for env in made:
