@@ -38,7 +38,7 @@ from nirl_mj.data.atomic import write_text
 from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.lock import writes
 from nirl_mj.data.outcomes import sct
-from nirl_mj.data.rundir import RunDir
+from nirl_mj.data.rundir import RUN_FILE, RunDir
 from nirl_mj.data.trajectory import Trajectory, path_length
 from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSpec, check_actions
 from nirl_mj.experiments.evaluation import evaluate
@@ -131,7 +131,7 @@ def main_job(
         raise FileExistsError(
             f"{out} exists and is not empty; pass --resume to continue it, or choose another --out"
         )
-    if (out / "nirl" / "run.json").is_file() and not (out / "experiment.json").is_file():
+    if (out / "nirl" / RUN_FILE).is_file() and not (out / EXPERIMENT_FILE).is_file():
         raise ExperimentError(
             f"{out} is a main job of an older nirl-mj (its NIRL run is in nirl/; now runs/NIRL/SEED): it "
             "cannot be resumed; run the main job in a new --out (the old run still evaluates: "
