@@ -380,6 +380,24 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
         rl.tuned("ppo", {"lr_schedule": "cosine"})
 
 
+def test_validation_arenas_sets_how_many_arenas_score_a_checkpoint_the_defaults_first(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.experiments.seeds import domain_seed
+
+    record = rl.train_rl(tmp_path / "run", OPEN, "ppo", 512, seed=3, checkpoint_every=512, envs=2,
+                         selection="validation_success", changes={"validation_arenas": 2})  # fmt: skip
+    assert record["validation_seeds"] == [domain_seed("validation", 3, k) for k in range(2)]
+    assert record["config"]["validation_arenas"] == 2 and {s["episodes"] for s in record["scores"]} == {2}
+    with pytest.raises(
+        ValueError, match="validation_arenas goes with selection validation_success, not last"
+    ):
+        rl.run_config("ppo", "last", 1, {"validation_arenas": 50})
+    with pytest.raises(ValueError, match="settings.validation_arenas = 0: expected an int >= 1"):
+        rl.tuned("ppo", {"validation_arenas": 0})
+
+
 def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_the_same(tmp_path, monkeypatch):
     """Scripted validation outcomes (4 arenas, 4 checkpoints): a checkpoint stops once its successes
     plus the arenas left fall below the best so far, records no score but the most it could have

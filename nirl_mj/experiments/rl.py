@@ -107,10 +107,13 @@ def default_selection(algo: str) -> str:
 
 TUNABLE = {"learning_rate": (float, 0.0, None), "n_epochs": (int, 1, None), "batch_size": (int, 2, None),
            "ent_coef": (float, None, None), "clip_range": (float, 0.0, None), "gae_lambda": (float, 0.0, 1.0),
-           "gamma": (float, 0.0, 1.0), "target_kl": (float, 0.0, None)}  # fmt: skip
+           "gamma": (float, 0.0, 1.0), "target_kl": (float, 0.0, None),
+           "validation_arenas": (int, 1, None)}  # fmt: skip
 """PPO's settings an experiment may change (``[method.NAME] settings = {...}``): (type, lowest, highest);
 a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0; and the words of
-:data:`CHOICES`."""
+:data:`CHOICES`. ``validation_arenas`` is the selection's, not PPO's: the arenas
+``validation_success`` drives every checkpoint on (default :data:`VALIDATION_ARENAS`; the first
+:data:`VALIDATION_ARENAS` are the default's)."""
 CHOICES = {"lr_schedule": ("constant", "linear"), "act": ("sampled", "greedy")}
 """PPO's settings that take a word: ``lr_schedule`` ``linear`` decays ``learning_rate`` linearly to 0
 at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`` keeps it; ``act``,
@@ -170,6 +173,10 @@ def run_config(
         raise ValueError(f"envs = {envs}: must be >= 1 and divide the {CHECKPOINT_EVERY} decisions between "
                          "checkpoints")  # fmt: skip
     config = {"algo": algo, **SETTINGS[algo], **tuned(algo, changes or {})}
+    if "validation_arenas" in config and selection != "validation_success":
+        raise ValueError(
+            f"settings.validation_arenas goes with selection validation_success, not {selection}"
+        )
     if train_drive:
         config["train_drive"] = train_drive
     if (selection, envs) == (LEGACY["selection"], LEGACY["envs"]):
@@ -244,7 +251,8 @@ def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
 def _model_settings(config: dict) -> dict:
     """The keyword arguments of the algorithm's constructor from a run's config: its own keys
     dropped, ``lr_schedule`` turned into the learning rate's schedule."""
-    own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive", "act")
+    own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive", "act",
+           "validation_arenas")  # fmt: skip
     settings = {k: v for k, v in config.items() if k not in own}
     if config.get("lr_schedule") == "linear":
         from stable_baselines3.common.utils import LinearSchedule
@@ -367,7 +375,8 @@ def train_rl(
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}),
-              "validation_seeds": [domain_seed("validation", seed, k) for k in range(VALIDATION_ARENAS)]
+              "validation_seeds": [domain_seed("validation", seed, k)
+                                   for k in range(config.get("validation_arenas", VALIDATION_ARENAS))]
               if selection == "validation_success" else [],
               "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo, selection)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
