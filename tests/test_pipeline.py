@@ -3,9 +3,10 @@
 import json
 import re
 
+import pytest
 import rerun.chunk
 
-from nirl_mj.cli import main
+from nirl_mj.cli import commands, main
 
 
 def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
@@ -48,7 +49,7 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
     assert (out / "demos.npz").read_bytes() == before
 
 
-def test_train_then_eval_from_the_command_line(tmp_path, capsys):
+def test_train_then_eval_from_the_command_line(tmp_path, capsys, monkeypatch):
     task = tmp_path / "tiny.toml"
     task.write_text('[robot]\ndrive = "planar"\n[control]\nstep_budget = 8\n')
     demos = tmp_path / "demos.npz"
@@ -65,10 +66,14 @@ def test_train_then_eval_from_the_command_line(tmp_path, capsys):
         assert key in result
     assert result["tests"] == 3
     assert len(json.loads((run / "eval.json").read_text())) == 1
-    # the same evaluation again is refused unless asked; one under --set is stored beside it
+    # the same evaluation again (a --set that changes nothing too) is refused before it drives an
+    # episode, unless asked; one under --set is stored beside it
     before = (run / "eval.json").read_bytes()
-    assert main(["eval", "--run", str(run), "--tests", "3", "--quiet"]) == 2
-    assert "already holds the evaluation" in capsys.readouterr().err
+    with monkeypatch.context() as patch:
+        patch.setattr(commands, "evaluate", lambda *a, **k: pytest.fail("evaluated before refusing"))
+        for same in ([], ["--set", "control.speed=2"]):
+            assert main(["eval", "--run", str(run), "--tests", "3", "--quiet", *same]) == 2
+            assert "already holds the evaluation" in capsys.readouterr().err
     assert (run / "eval.json").read_bytes() == before
     assert main(["eval", "--run", str(run), "--tests", "3", "--quiet", "--overwrite"]) == 0
     assert main(["eval", "--run", str(run), "--tests", "3", "--quiet", "--set", "control.speed=1.5"]) == 0

@@ -237,6 +237,11 @@ def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installe
         from_dict(
             {"kind": "compare", "methods": ["Nobody"], "method": {"Nobody": {"settings": {"k": 1}}}}, "e.toml"
         )
+    with pytest.raises(
+        ExperimentError, match="method 'Walker': it acts on features: declare features in its reads"
+    ):
+        walker = {"Walker": {"settings": {"reads": ["demonstrations"]}}}
+        from_dict({"kind": "compare", "methods": ["Walker"], "method": walker}, "e.toml")
     with pytest.raises(ExperimentError, match="settings {'speed': 3}: .*unexpected keyword"):
         walker = {"Walker": {"settings": {"speed": 3}}}
         from_dict({"kind": "compare", "methods": ["Walker"], "method": walker}, "e.toml")

@@ -390,6 +390,11 @@ def test_validation_arenas_sets_how_many_arenas_score_a_checkpoint_the_defaults_
                          selection="validation_success", changes={"validation_arenas": 2})  # fmt: skip
     assert record["validation_seeds"] == [domain_seed("validation", 3, k) for k in range(2)]
     assert record["config"]["validation_arenas"] == 2 and {s["episodes"] for s in record["scores"]} == {2}
+    # the default number written out is the default's configuration (and identity)
+    default = rl.run_config("ppo", "validation_success", 8)
+    assert (
+        rl.run_config("ppo", "validation_success", 8, {"validation_arenas": rl.VALIDATION_ARENAS}) == default
+    )
     with pytest.raises(
         ValueError, match="validation_arenas goes with selection validation_success, not last"
     ):

@@ -14,7 +14,7 @@ nirl=$(command -v nirl-mj || echo .venv/bin/nirl-mj)
 rate() { tail -n1 | python3 -c "import json,sys; print(json.load(sys.stdin)['success_rate'])"; }
 for fam in corridors pockets clusters blocks rooms slalom; do
   set_=(--task tasks/structured.toml --set arena.floor_plan=$fam)
-  line="$fam run=$("$nirl" eval --run "$run" "${set_[@]}" --tests "$N" --json --quiet | rate)"
+  line="$fam run=$("$nirl" eval --run "$run" "${set_[@]}" --tests "$N" --json --quiet --overwrite | rate)"
   if [ "${REFERENCES:-1}" != 0 ]; then
     r=$("$nirl" eval --policy rule "${set_[@]}" --tests "$N" --json --quiet | rate)
     f=$("$nirl" eval --policy forward "${set_[@]}" --tests "$N" --json --quiet | rate)

@@ -16,7 +16,7 @@ export nirl
 last_iterate() {  # RUN_DIR -> "R RATE"
   local r line
   r=$(basename "$1")
-  line=$("$nirl" eval --run "$1" --which last --seed "$r" --tests 100 --quiet --json | tail -1)
+  line=$("$nirl" eval --run "$1" --which last --seed "$r" --tests 100 --quiet --json --overwrite | tail -1)
   echo "$r $(python3 -c 'import json, sys; print(round(100 * json.loads(sys.argv[1])["success_rate"]))' "$line")"
 }
 export -f last_iterate

@@ -362,10 +362,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         _check_output(args.rerun, args.overwrite)
     backend = _backend(args)
     warp = backend.name != "cpu"
-    # --set changes the task but not its name: the key names the overrides, so that an evaluation
-    # under other settings never takes the plain one's place
+    # --set changes the task but not its name: the key names the values it changed, so that an
+    # evaluation under other settings never takes the plain one's place
+    changed = _changed_values(subject.task, spec)
     key = (f"{spec.name}|seed={args.seed}|tests={args.tests}|{args.which}" + ("|backend=warp" if warp else "")
-           + "".join(f"|set {override}" for override in args.set or ()))  # fmt: skip
+           + "".join(f"|set {value}" for value in changed))  # fmt: skip
     if subject.run:
         # a corrupt eval.json, or an evaluation already there, fails now, not after the evaluation
         if key in subject.run.read_evaluations() and not args.overwrite:
@@ -387,7 +388,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "policy": args.which if args.run else args.policy,
         **({"backend": backend.to_dict()} if warp else {}),
-        **({"set": list(args.set)} if args.set else {}),
+        **({"set": changed} if changed else {}),
     }
     if subject.run:
         subject.run.add_evaluation(key, result)
@@ -402,6 +403,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result))
     return 0
+
+
+def _changed_values(base: specs.TaskSpec, spec: specs.TaskSpec) -> list[str]:
+    """``SECTION.KEY=VALUE`` (VALUE as JSON) for every task value in which ``spec`` differs from
+    ``base``, sorted: the same for any order or spelling of the overrides that made it."""
+    before, after = base.to_dict(), spec.to_dict()
+    changed = []
+    for section in sorted(k for k, v in {**before, **after}.items() if isinstance(v, dict)):
+        was, now = before.get(section, {}), after.get(section, {})
+        # to_dict leaves out some values at their defaults: a key on one side only changed too
+        changed += [f"{section}.{key}={json.dumps(now.get(key))}" for key in sorted({*was, *now})
+                    if was.get(key) != now.get(key)]  # fmt: skip
+    return changed
 
 
 def _backend(args: argparse.Namespace, saved: dict | None = None) -> Backend:

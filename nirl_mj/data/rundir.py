@@ -9,8 +9,9 @@ A run directory holds:
 - ``checkpoint.npz``: the whole learner state after the last finished iteration;
 - ``policy.npz``: the selected and the last network (``selected/W1``, ``last/W2``, ...);
 - ``reward.json``: the selected reward (``{"kind", "theta": {name: value}}``);
-- ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``, and ``|backend=warp``
-  for an evaluation on the Warp backend).
+- ``eval.json``: held-out evaluations by key (``task|seed=S|tests=N|which``, ``|backend=warp``
+  for an evaluation on the Warp backend, and ``|set SECTION.KEY=VALUE`` for each task value that
+  ``--set`` changed).
 
 A reinforcement-learning run (``nirl-mj rl``, record ``"kind": "rl"``) holds ``run.json``,
 ``model.zip`` (the Stable-Baselines3 model, written at every checkpoint and at the end), the

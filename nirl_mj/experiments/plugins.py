@@ -105,6 +105,8 @@ def check_declarations(name: str, method: Any) -> None:
         raise MethodError(
             f"method {name!r}: observation = {observation!r}: accepted: {', '.join(OBSERVATIONS)}"
         )
+    if observation not in reads:  # its policy acts on them, and its demonstrations hold them
+        raise MethodError(f"method {name!r}: it acts on {observation}: declare {observation} in its reads")
     if not callable(getattr(method, "train", None)):
         raise MethodError(
             f"method {name!r}: it has no train(demonstrations, make_env, budget, seed, workdir)"

@@ -53,7 +53,7 @@ from nirl_mj.data.rundir import (
     RunError,
 )
 from nirl_mj.experiments.reads import rl_reads
-from nirl_mj.experiments.seeds import domain_seed
+from nirl_mj.experiments.seeds import domain_seed, domain_seeds
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.observations import feature_bounds
 
@@ -177,6 +177,8 @@ def run_config(
         raise ValueError(
             f"settings.validation_arenas goes with selection validation_success, not {selection}"
         )
+    if config.get("validation_arenas") == VALIDATION_ARENAS:  # the default: the default's identity
+        del config["validation_arenas"]
     if train_drive:
         config["train_drive"] = train_drive
     if (selection, envs) == (LEGACY["selection"], LEGACY["envs"]):
@@ -372,11 +374,11 @@ def train_rl(
 
         trajectories = load_demonstrations(demos)  # a dataset file or minari:ID, as train reads
         config["discriminator"] = adv.variant_of(algo).settings()
+    validation_arenas = config.get("validation_arenas", VALIDATION_ARENAS)
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
               "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}),
-              "validation_seeds": [domain_seed("validation", seed, k)
-                                   for k in range(config.get("validation_arenas", VALIDATION_ARENAS))]
+              "validation_seeds": domain_seeds("validation", seed, validation_arenas)
               if selection == "validation_success" else [],
               "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo, selection)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
