@@ -403,6 +403,25 @@ def test_validation_arenas_sets_how_many_arenas_score_a_checkpoint_the_defaults_
         rl.tuned("ppo", {"validation_arenas": 0})
 
 
+def test_ppo_may_see_phi_as_nirls_bearing_code(tmp_path):
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.learn.inputs import NetworkInputs
+
+    record = rl.train_rl(tmp_path / "run", OPEN, "ppo", 256, seed=1, checkpoint_every=256, envs=2,
+                         selection="last", changes={"inputs": "bearing"})  # fmt: skip
+    model = sb3.PPO.load(tmp_path / "run" / "model.zip", device="cpu")
+    assert model.observation_space.shape == (17,) and record["config"]["inputs"] == "bearing"
+    phi = np.array([0, 0, 1, 2, 0, 0, 7, 3, 1, 0, 1, 0, 0, 0, 0, 0], np.float32)  # V = 3: left
+    code, _ = rl.observation_code(record["config"])
+    np.testing.assert_allclose(code(phi), NetworkInputs(scaled=True, bearing=True)(phi), rtol=1e-6)
+    expected, _ = model.predict(code(phi), deterministic=True)
+    assert rl.model_policy(model, record, sampled=False, seed=0, shares=True)(phi) == int(expected)
+    with pytest.raises(ValueError, match="settings.inputs = 'bearing': ppo only, not gail"):
+        rl.tuned("gail", {"inputs": "bearing"})
+
+
 def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_the_same(tmp_path, monkeypatch):
     """Scripted validation outcomes (4 arenas, 4 checkpoints): a checkpoint stops once its successes
     plus the arenas left fall below the best so far, records no score but the most it could have

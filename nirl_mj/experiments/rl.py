@@ -114,12 +114,17 @@ a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 
 :data:`CHOICES`. ``validation_arenas`` is the selection's, not PPO's: the arenas
 ``validation_success`` drives every checkpoint on (default :data:`VALIDATION_ARENAS`; the first
 :data:`VALIDATION_ARENAS` are the default's)."""
-CHOICES = {"lr_schedule": ("constant", "linear"), "act": ("sampled", "greedy")}
+CHOICES = {
+    "lr_schedule": ("constant", "linear"),
+    "act": ("sampled", "greedy"),
+    "inputs": ("scaled", "bearing"),
+}
 """PPO's settings that take a word: ``lr_schedule`` ``linear`` decays ``learning_rate`` linearly to 0
 at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`` keeps it; ``act``,
 how validation and tests drive a discrete PPO policy (:func:`model_policy`): ``sampled`` (the
 default) draws each action from its distribution, ``greedy`` takes its mode. Training is the same
-either way."""
+either way. ``inputs``, what the networks see of phi(s) (:func:`observation_code`): ``scaled`` (the
+default) or ``bearing``, NIRL's default code (``nirl_mj.learn.inputs``); ``ppo`` only."""
 CHECKPOINT_EVERY = 5_000
 """Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
@@ -134,6 +139,8 @@ def tuned(algo: str, changes: dict) -> dict:
         if key in CHOICES:
             if value not in CHOICES[key]:
                 raise ValueError(f"settings.{key} = {value!r}: accepted: {', '.join(CHOICES[key])}")
+            if key == "inputs" and value != "scaled" and algo != "ppo":  # a discriminator reads 16 values
+                raise ValueError(f"settings.inputs = {value!r}: ppo only, not {algo}")
             out[key] = value
             continue
         if key not in TUNABLE:
@@ -198,6 +205,22 @@ def scaled(phi: np.ndarray) -> np.ndarray:
     return (np.asarray(phi, dtype=np.float32) * _SCALE).astype(np.float32)
 
 
+def observation_code(config: dict) -> tuple[Callable[[np.ndarray], np.ndarray], Any]:
+    """What a run's networks see of phi(s) (..., 16), float32, and its bounds as a Gymnasium
+    ``Box``: :func:`scaled`, or with ``inputs = "bearing"`` NIRL's default code, V's sector centre
+    as (cos, sin) (17 values in [-1, 1])."""
+    import gymnasium
+
+    if config.get("inputs", "scaled") == "scaled":
+        return scaled, gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)
+    from nirl_mj.learn.inputs import NetworkInputs
+
+    code = NetworkInputs(scaled=True, bearing=True)
+    return (lambda phi: code(phi).astype(np.float32)), gymnasium.spaces.Box(
+        -1.0, 1.0, (code.size,), np.float32
+    )
+
+
 def _algorithm(algo: str):
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {algo!r}: accepted: {', '.join(ALGOS)}")
@@ -206,9 +229,17 @@ def _algorithm(algo: str):
     return stable_baselines3.DQN if algo == "dqn" else stable_baselines3.PPO
 
 
-def _environment(task: specs.TaskSpec, seed: int, first_episode: int, envs: int = 1, legacy: bool = False):
-    """``envs`` training environments stepped in turn in one process, phi(s) scaled; every episode
-    draws the next arena of the train domain from one :class:`ArenaStream` (returned with them).
+def _environment(
+    task: specs.TaskSpec,
+    seed: int,
+    first_episode: int,
+    envs: int = 1,
+    legacy: bool = False,
+    config: dict | None = None,
+):
+    """``envs`` training environments stepped in turn in one process, phi(s) coded as ``config`` says
+    (:func:`observation_code`); every episode draws the next arena of the train domain from one
+    :class:`ArenaStream` (returned with them).
     ``legacy``: as runs before 2026-11-26 trained, the first episode in the arena of seed ``seed``
     (Stable-Baselines3's seeding), the later ones from the stream."""
     import gymnasium
@@ -220,13 +251,13 @@ def _environment(task: specs.TaskSpec, seed: int, first_episode: int, envs: int 
     from nirl_mj.gym.wrappers import ArenaSeeds
 
     stream = ArenaStream(lambda k: domain_seed("train", seed, k), start=first_episode)
-    box = gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)
+    code, box = observation_code(config or {})
 
     def make() -> gymnasium.Env:
         arenas = ArenaSeeds(
             NavigationEnv(task, observation="features"), stream=stream, replace_given=not legacy
         )
-        wrapped = gymnasium.wrappers.TransformObservation(arenas, scaled, box)
+        wrapped = gymnasium.wrappers.TransformObservation(arenas, code, box)
         return Monitor(wrapped, info_keywords=("is_success",))
 
     return DummyVecEnv([make] * envs), stream
@@ -254,7 +285,7 @@ def _model_settings(config: dict) -> dict:
     """The keyword arguments of the algorithm's constructor from a run's config: its own keys
     dropped, ``lr_schedule`` turned into the learning rate's schedule."""
     own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive", "act",
-           "validation_arenas")  # fmt: skip
+           "validation_arenas", "inputs")  # fmt: skip
     settings = {k: v for k, v in config.items() if k not in own}
     if config.get("lr_schedule") == "linear":
         from stable_baselines3.common.utils import LinearSchedule
@@ -403,7 +434,7 @@ def train_rl(
 
     legacy = "selection" not in config
     train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
-    venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy)
+    venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy, config)
     callbacks = []
     if adversarial:
         expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
@@ -585,6 +616,7 @@ def model_policy(
     any dict with the ``algo``, the task's ``control.actions`` and, where set, ``config.act``)."""
     if sampled is None:
         sampled = record.get("config", {}).get("act", "sampled") == "sampled"
+    code, _ = observation_code(record.get("config", {}))
     discrete_ppo = (
         record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
     )
@@ -595,7 +627,7 @@ def model_policy(
 
         def sample(phi: np.ndarray) -> int:
             with torch.no_grad():
-                dist = model.policy.get_distribution(torch.as_tensor(scaled(phi))[None])
+                dist = model.policy.get_distribution(torch.as_tensor(code(phi))[None])
             probs = dist.distribution.probs[0].numpy().astype(np.float64)
             return int(rng.choice(len(probs), p=probs / probs.sum()))
 
@@ -609,7 +641,7 @@ def model_policy(
         bounds = action_scale(specs.from_dict(record["task"], "run record"))
 
     def mode(phi: np.ndarray) -> int | np.ndarray:
-        action, _ = model.predict(scaled(phi), deterministic=True)
+        action, _ = model.predict(code(phi), deterministic=True)
         if scale is not None:  # continuous, normalised: (forward m/s, yaw rate rad/s) for the task
             share = np.clip(action, -1.0, 1.0)
             return share.astype(np.float32) if shares else share * scale
