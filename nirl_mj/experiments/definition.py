@@ -162,7 +162,8 @@ BUILTIN_METHODS = {
     # (tasks/ablations/rl_greedy.toml: sampled, it collided in 13-16 % of the tests there), and the
     # learning rate decayed linearly to 0 (tasks/ablations/rl_schedule.toml: 94.8 % against 90.8 %);
     # 50,000 and 200,000 decisions scored less there and in tasks/ablations/rl_budget.toml; 50
-    # validation arenas changed one run in five (tasks/ablations/rl_validation.toml)
+    # validation arenas changed one run in five (tasks/ablations/rl_validation.toml); NIRL's bearing
+    # code stopped the fall but scored less (tasks/ablations/rl_inputs.toml)
     "PPO-reward": MethodSpec(
         "PPO-reward",
         "rl",
