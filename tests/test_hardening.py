@@ -197,3 +197,18 @@ def test_ctrl_c_during_training_says_how_to_resume(tmp_path, datasets, capsys, m
 
 def test_a_directory_as_output_file_is_refused_before_any_episode(tmp_path, capsys):
     refused(capsys, ["demos", "--out", str(tmp_path), "--overwrite", "--episodes", "1"], "is a directory")
+
+
+def test_eval_refuses_an_existing_rerun_file_before_cloning_the_demonstrations(tmp_path, datasets, capsys,
+                                                                               monkeypatch):  # fmt: skip
+    from nirl_mj.cli import commands
+
+    def no_subject(args):
+        raise AssertionError("the subject was built (behaviour cloning trained) before the refusal")
+
+    monkeypatch.setattr(commands, "_subject", no_subject)
+    kept = tmp_path / "eval.rrd"
+    kept.write_bytes(b"a user's recording")
+    argv = ["eval", "--policy", "bc", "--demos", str(datasets[0]), "--rerun", str(kept), "--tests", "1"]
+    refused(capsys, argv, "exists", "--overwrite")
+    assert kept.read_bytes() == b"a user's recording"

@@ -355,11 +355,11 @@ def _subject(args: argparse.Namespace) -> Subject:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.rerun:  # before the subject: `--policy bc` trains one
+        _check_output(args.rerun, args.overwrite)
     subject = _subject(args)
     spec = apply_overrides(subject.task, args.set)
     _no_rerun_of_continuous(args, spec)
-    if args.rerun:
-        _check_output(args.rerun, args.overwrite)
     backend = _backend(args)
     warp = backend.name != "cpu"
     # --set changes the task but not its name: the key names the values it changed, so that an

@@ -189,7 +189,7 @@ def moving_positions(layout: Layout, times: np.ndarray) -> np.ndarray:
     """Centres (metres) of the layout's moving obstacles at ``times`` (seconds since the episode's
     start, non-decreasing): (len(times), M, 2). The task moves them the same way (straight lines,
     bouncing off the border walls); it stops them once an episode's outcome is decided, so the
-    last decision of an episode that ends early shows them up to half a decision ahead."""
+    last decision of an episode that ends early shows them up to one decision ahead."""
     m = len(layout.moving)
     p = np.array([(o.x, o.y) for o in layout.moving], dtype=np.float64).reshape(m, 2)
     v = np.array([(o.vx, o.vy) for o in layout.moving], dtype=np.float64).reshape(m, 2)
