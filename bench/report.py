@@ -17,8 +17,8 @@ from nirl_mj.data.lock import DirectoryLock
 PERFORMANCE_MD = Path(__file__).resolve().parents[1] / "docs" / "PERFORMANCE.md"
 _HEADER = (
     "# Performance\n\nEach section is written by the benchmark named in it; "
-    "rerun the command to refresh it (the main job's\n`--out` must be absent or empty: it is timed from scratch; "
-    'its\nparagraphs that start "Note (by hand)" are kept, after the new figures: '
+    "rerun the command to refresh it (the main job's\n`--out` must be absent or empty: it is timed "
+    'from scratch; its\nparagraphs that start "Note (by hand)" are kept, after the new figures: '
     "`bench/report.py`).\n"
 )
 HAND_NOTE = "Note (by hand)"
