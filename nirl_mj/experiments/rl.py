@@ -9,7 +9,8 @@ from the demonstrations: PPO with every reward replaced by a discriminator's
 ``gail-d2`` and ``airl-d2`` with two full-batch discriminator steps per rollout.
 
 NIRL never reads the task's reward; this reference does, with the same observation as NIRL,
-phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds), and the same held-out
+phi(s) (``features``, 16 values, scaled to [0, 1] by their upper bounds, or with ``inputs =
+"bearing"`` in NIRL's code: :func:`observation_code`), and the same held-out
 tests (``nirl-mj eval --run RUN``). The environment is ``nirl_mj.gym.NavigationEnv``; every
 training episode draws the arena of ``seeds.domain_seed("train", seed, k)`` for its k-th episode
 (:class:`~nirl_mj.gym.wrappers.ArenaSeeds`), recorded as the run's ``train_seeds``, so held-out
