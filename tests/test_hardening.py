@@ -199,8 +199,9 @@ def test_a_directory_as_output_file_is_refused_before_any_episode(tmp_path, caps
     refused(capsys, ["demos", "--out", str(tmp_path), "--overwrite", "--episodes", "1"], "is a directory")
 
 
-def test_eval_refuses_an_existing_rerun_file_before_cloning_the_demonstrations(tmp_path, datasets, capsys,
-                                                                               monkeypatch):  # fmt: skip
+def test_eval_refuses_a_rerun_it_cannot_write_before_cloning_the_demonstrations(
+    tmp_path, datasets, capsys, monkeypatch
+):
     from nirl_mj.cli import commands
 
     def no_subject(args):
@@ -212,3 +213,6 @@ def test_eval_refuses_an_existing_rerun_file_before_cloning_the_demonstrations(t
     argv = ["eval", "--policy", "bc", "--demos", str(datasets[0]), "--rerun", str(kept), "--tests", "1"]
     refused(capsys, argv, "exists", "--overwrite")
     assert kept.read_bytes() == b"a user's recording"
+    fresh = ["eval", "--policy", "bc", "--demos", str(datasets[0]), "--rerun", str(tmp_path / "new.rrd"),
+             "--set", 'control.actions="continuous"', "--tests", "1"]  # fmt: skip
+    refused(capsys, fresh, "--rerun: task", "continuous actions")

@@ -357,6 +357,8 @@ def _subject(args: argparse.Namespace) -> Subject:
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.rerun:  # before the subject: `--policy bc` trains one
         _check_output(args.rerun, args.overwrite)
+        if not args.run:  # a run's task is its record's, known once the subject is
+            _no_rerun_of_continuous(args, _task(args))
     subject = _subject(args)
     spec = apply_overrides(subject.task, args.set)
     _no_rerun_of_continuous(args, spec)
