@@ -361,7 +361,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             _no_rerun_of_continuous(args, _task(args))
     subject = _subject(args)
     spec = apply_overrides(subject.task, args.set)
-    _no_rerun_of_continuous(args, spec)
+    if args.run:
+        _no_rerun_of_continuous(args, spec)
     backend = _backend(args)
     warp = backend.name != "cpu"
     # --set changes the task but not its name: the key names the values it changed, so that an

@@ -159,8 +159,8 @@ BUILTIN_METHODS = {
     # and tests, its checkpoint chosen by success on 20 validation arenas (it reads the task's reward
     # anyway); all tuned on the development domain: the budget (tasks/ablations/rl_reference.toml),
     # greedy driving and the selection (tasks/ablations/rl_greedy.toml: sampled, it collided in
-    # 13-16 % of the tests there), the learning rate (tasks/ablations/rl_bearing.toml, below), and the
-    # learning rate decayed linearly to 0 (tasks/ablations/rl_schedule.toml: 94.8 % against 90.8 %);
+    # 13-16 % of the tests there), the learning rate (tasks/ablations/rl_bearing.toml, below) and its
+    # linear decay to 0 (tasks/ablations/rl_schedule.toml: 94.8 % against 90.8 %);
     # 50,000 and 200,000 decisions scored less there and in tasks/ablations/rl_budget.toml; 50
     # validation arenas changed one run in five (tasks/ablations/rl_validation.toml); NIRL's bearing
     # code for V (cos, sin of its sector's centre), as NIRL, BC and DAgger see it, stopped the fall
