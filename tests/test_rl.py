@@ -418,8 +418,38 @@ def test_ppo_may_see_phi_as_nirls_bearing_code(tmp_path):
     np.testing.assert_allclose(code(phi), NetworkInputs(scaled=True, bearing=True)(phi), rtol=1e-6)
     expected, _ = model.predict(code(phi), deterministic=True)
     assert rl.model_policy(model, record, sampled=False, seed=0, shares=True)(phi) == int(expected)
-    with pytest.raises(ValueError, match="settings.inputs = 'bearing': ppo only, not gail"):
-        rl.tuned("gail", {"inputs": "bearing"})
+    with pytest.raises(ValueError, match="settings apply to PPO and its adversarial learners, not dqn"):
+        rl.tuned("dqn", {"inputs": "bearing"})
+
+
+@pytest.mark.parametrize("algo", ["gail", "airl-absorbing"])
+def test_gail_and_airl_may_see_phi_as_nirls_bearing_code_policy_and_discriminator_alike(tmp_path, algo):
+    from helpers import OPEN
+
+    from nirl_mj.data.dataset import load_dataset
+    from nirl_mj.data.rundir import RunError
+    from nirl_mj.experiments import rl
+    from nirl_mj.experiments.adversarial import load_discriminator
+    from nirl_mj.experiments.subjects import run_subject
+
+    demos = _rule_demos(tmp_path)
+    run = tmp_path / "run"
+    record = rl.train_rl(run, OPEN, algo, 1024, seed=2, demos=demos, checkpoint_every=512, envs=2,
+                         changes={"inputs": "bearing"})  # fmt: skip
+    model = sb3.PPO.load(run / "model.zip", device="cpu")
+    assert model.observation_space.shape == (17,) and record["config"]["inputs"] == "bearing"
+    kind, absorbing = algo.split("-")[0], algo.endswith("absorbing")
+    disc = load_discriminator(run, kind, 0.99, n_inputs=17)
+    assert disc.inputs.width == 17 + absorbing and disc.inputs.absorbing == absorbing
+    if absorbing:  # 18 columns are neither 16 inputs nor 16 and an absorbing state
+        with pytest.raises(RunError, match="reads 18 inputs, not 16"):
+            load_discriminator(run, kind, 0.99)
+    # the selection scored the policy on the demonstrations as the policy sees them
+    code, _ = rl.observation_code(record["config"])
+    assert rl._demo_scorer(model, load_dataset(demos), code)() == record["scores"][-1]["score"]
+    if kind == "airl":  # the subject's reward map reads phi(s) through the run's code
+        rewards = run_subject(run).reward().rewards_all_actions(np.zeros((3, 16)))
+        assert rewards.shape == (3, 6) and np.isfinite(rewards).all()
 
 
 def test_validation_stops_a_checkpoint_that_cannot_reach_the_best_and_selects_the_same(tmp_path, monkeypatch):

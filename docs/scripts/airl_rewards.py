@@ -31,15 +31,16 @@ from nirl_mj.data.rundir import RunDir
 from nirl_mj.data.transitions import Transitions
 from nirl_mj.experiments.adversarial import AdversarialReward, expert_transitions, read_discriminator
 from nirl_mj.experiments.evaluation import evaluate
-from nirl_mj.experiments.rl import load_rl_policy, scaled
+from nirl_mj.experiments.rl import load_rl_policy, observation_code
 from nirl_mj.experiments.seeds import domain_seeds
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.task import make_env
 
 
-def rewards_of(reward: AdversarialReward, trajectories) -> np.ndarray:
-    """The policy's reward per decision (AIRL's is the logit; GAIL's softplus of it)."""
-    logits = reward.logits(expert_transitions(trajectories, scaled))
+def rewards_of(reward: AdversarialReward, trajectories, code) -> np.ndarray:
+    """The policy's reward per decision (AIRL's is the logit; GAIL's softplus of it); ``code``: phi(s)
+    -> the run's observation."""
+    logits = reward.logits(expert_transitions(trajectories, code))
     return reward.discriminator.policy_reward(logits).detach().numpy()
 
 
@@ -51,13 +52,14 @@ def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
         policy, _ = load_rl_policy(run_dir, seed=r)
         model = PPO.load(RunDir(run_dir).model_file(), device="cpu")
         gamma = float(record["config"]["gamma"])
-        reward = AdversarialReward(record["algo"], gamma, expert_transitions(demos, scaled), seed=0)
+        code, _ = observation_code(record["config"])
+        reward = AdversarialReward(record["algo"], gamma, expert_transitions(demos, code), seed=0)
         reward.load_state(read_discriminator(RunDir(run_dir)))
         reward.policy = model.policy
         env = make_env(specs.from_dict(record["task"]))
         metrics, episodes = evaluate(env, policy, domain_seeds("train", r, 20))
         with torch.no_grad():
-            own, expert = rewards_of(reward, episodes), rewards_of(reward, demos)
+            own, expert = rewards_of(reward, episodes, code), rewards_of(reward, demos, code)
         lengths = [len(t) for t in episodes]
         own_part = f"mean reward {own.mean():+.2f} per decision, {100 * (own < 0).mean():.0f} % negative"
         success, collision = 100 * metrics["success_rate"], 100 * metrics["collision_rate"]
@@ -66,9 +68,8 @@ def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
         extra = ""
         if reward.absorbing:
             with torch.no_grad():
-                at = float(
-                    reward.discriminator.policy_reward(reward.logits(Transitions.absorbing_pairs(1)))[0]
-                )
+                stay = reward.logits(Transitions.absorbing_pairs(1, reward.width))
+                at = float(reward.discriminator.policy_reward(stay)[0])
             tail = gamma / (1 - gamma) * at
             extra = f" | s_a: reward {at:+.2f} per step, {tail:+.1f} to a terminal step"
         if reward.norm is not None:  # what PPO was paid at the end of training: (r - mean) / std

@@ -6,8 +6,10 @@ algorithm 1 and in the imitation library's ``AdversarialTrainer``: PPO collects 
 (:class:`DiscriminatorReward`; the environment's own reward is dropped, never read), then the
 discriminator takes ``epochs`` passes of minibatch Adam steps on that rollout against as many
 pairs drawn from the demonstrations (:class:`DiscriminatorTraining`), then PPO updates its policy
-on the rollout. The observation is phi(s) scaled to [0, 1], as for the RL reference and the
-other rows; the demonstrations are the experiment's 30.
+on the rollout. The observation is phi(s) scaled to [0, 1], as for the RL reference, or with
+``settings.inputs = "bearing"`` NIRL's bearing code (``experiments.rl.observation_code``); the
+discriminator reads the same observation, and the demonstrations, the experiment's 30, go through
+the same code.
 
 ``gail-absorbing`` and ``airl-absorbing`` add the absorbing state of Kostrikov et al. (2019; see
 ``nirl_mj.learn.adversarial``): every terminal episode, the expert's and the learner's, adds one pair
@@ -66,7 +68,8 @@ SETTINGS = {"epochs": 4, "batch_size": 256, "learning_rate": 3e-4}
 
 
 def expert_transitions(demos: Sequence[Trajectory], scale, absorbing: bool = False) -> Transitions:
-    """Every demonstrated (s, a, s') with phi scaled by ``scale``, terminal where the demonstration
+    """Every demonstrated (s, a, s') with phi coded by ``scale`` (phi (N, 16) -> the policy's
+    observation (N, width)), terminal where the demonstration
     ended in a terminal state (as the environment and NIRL's loop end them; a timeout is a
     truncation). With ``absorbing``, each terminal demonstration adds one pair (s_a, ., s_a)."""
     rows = Transitions.of(demos, absorbing=absorbing)
@@ -148,7 +151,10 @@ class AdversarialReward:
         self.variant = variant
         self.norm = RunningNorm() if variant.normalised else None
         self.gamma = float(gamma)
-        self.discriminator = make_discriminator(variant.kind, gamma, seed, self.absorbing, variant.state_only)
+        self.width = int(demos.phi.shape[1])  # the observation's: the code's width
+        self.discriminator = make_discriminator(
+            variant.kind, gamma, seed, self.absorbing, variant.state_only, n_inputs=self.width
+        )
         self.optimiser = torch.optim.Adam(self.discriminator.parameters(), lr=SETTINGS["learning_rate"])
         self.demos = demos
         self.rng = np.random.default_rng(seed)
@@ -167,7 +173,8 @@ class AdversarialReward:
         with torch.no_grad():
             rewards = self.discriminator.policy_reward(self.logits(batch)).numpy().astype(np.float32)
             if self.absorbing and batch.terminal.any():
-                stay = self.discriminator.policy_reward(self.logits(Transitions.absorbing_pairs(1)))
+                at = self.logits(Transitions.absorbing_pairs(1, self.width))
+                stay = self.discriminator.policy_reward(at)
                 tail = self.gamma / (1.0 - self.gamma) * float(stay[0])
                 rewards = rewards + np.float32(tail) * batch.terminal
         if self.norm is not None:
@@ -238,14 +245,20 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
-def load_discriminator(run_dir, kind: str, gamma: float) -> Any:
-    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
-    an absorbing state or a state-only g(s) if it was trained with one."""
+def load_discriminator(run_dir, kind: str, gamma: float, n_inputs: int = N_INPUTS) -> Any:
+    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)) on
+    ``n_inputs`` coded values (the run's observation's width), with an absorbing state or a
+    state-only g(s) if it was trained with one."""
     arrays = read_discriminator(RunDir(run_dir))
     first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
     state_only = kind == "airl" and arrays["g.4.weight"].shape[0] == 1  # (outputs, hidden)
-    absorbing = first.shape[1] == N_INPUTS + 1
-    discriminator = make_discriminator(kind, gamma, absorbing=absorbing, state_only=state_only)
+    if first.shape[1] not in (n_inputs, n_inputs + 1):
+        raise RunError(f"{run_dir}'s discriminator reads {first.shape[1]} inputs, not {n_inputs} (or one "
+                       "more, an absorbing state): load it with its run's observation code")  # fmt: skip
+    absorbing = first.shape[1] == n_inputs + 1
+    discriminator = make_discriminator(
+        kind, gamma, absorbing=absorbing, state_only=state_only, n_inputs=n_inputs
+    )
     _load_weights(discriminator, arrays)
     return discriminator
 
@@ -254,9 +267,13 @@ class AirlReward:
     """An AIRL run's learned reward g(s, a) on phi(s), with RewardModel's reading methods (so reward
     maps and Rerun recordings show it as they show r_theta). Units: nats, per decision."""
 
-    def __init__(self, run_dir, gamma: float, scale: Callable[[np.ndarray], np.ndarray]) -> None:
-        """``scale``: phi(s) -> the inputs the run was trained on (``experiments.rl.scaled``)."""
-        self.discriminator, self.scale = load_discriminator(run_dir, "airl", gamma), scale
+    def __init__(
+        self, run_dir, gamma: float, scale: Callable[[np.ndarray], np.ndarray], n_inputs: int = N_INPUTS
+    ) -> None:
+        """``scale``: phi(s) -> the ``n_inputs`` values the run was trained on
+        (``experiments.rl.observation_code``)."""
+        self.discriminator = load_discriminator(run_dir, "airl", gamma, n_inputs)
+        self.scale = scale
 
     def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
         """g(s, a) for every action: phi (N, 16) -> (N, 6)."""
@@ -301,13 +318,13 @@ def reward_wrapper(venv, reward: AdversarialReward):
             batch = Transitions.pairs(self.last_obs.copy(), actions, x_next, terminal)
             self.kept.append(batch)
             if reward.absorbing and terminal.any():
-                self.kept.append(Transitions.absorbing_pairs(int(terminal.sum())))
+                self.kept.append(Transitions.absorbing_pairs(int(terminal.sum()), reward.width))
             self.last_obs = obs
             return obs, reward.rewards(batch), dones, infos
 
         def take(self) -> Transitions:
             kept, self.kept = self.kept, []
-            return Transitions.concat(kept) if kept else Transitions.empty()
+            return Transitions.concat(kept) if kept else Transitions.empty(reward.width)
 
     return DiscriminatorReward()
 

@@ -125,7 +125,8 @@ at the run's last decision (Stable-Baselines3's ``LinearSchedule``), ``constant`
 how validation and tests drive a discrete PPO policy (:func:`model_policy`): ``sampled`` (the
 default) draws each action from its distribution, ``greedy`` takes its mode. Training is the same
 either way. ``inputs``, what the networks see of phi(s) (:func:`observation_code`): ``scaled`` (the
-default) or ``bearing``, NIRL's default code (``nirl_mj.learn.inputs``); ``ppo`` only."""
+default) or ``bearing``, NIRL's default code (``nirl_mj.learn.inputs``); an adversarial learner's
+discriminator reads the same code as its policy."""
 CHECKPOINT_EVERY = 5_000
 """Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
@@ -140,8 +141,6 @@ def tuned(algo: str, changes: dict) -> dict:
         if key in CHOICES:
             if value not in CHOICES[key]:
                 raise ValueError(f"settings.{key} = {value!r}: accepted: {', '.join(CHOICES[key])}")
-            if key == "inputs" and value != "scaled" and algo != "ppo":  # a discriminator reads 16 values
-                raise ValueError(f"settings.inputs = {value!r}: ppo only, not {algo}")
             out[key] = value
             continue
         if key not in TUNABLE:
@@ -264,15 +263,18 @@ def _environment(
     return DummyVecEnv([make] * envs), stream
 
 
-def _demo_scorer(model: Any, trajectories: list) -> Callable[[], float]:
-    """The greedy action's balanced accuracy on the demonstrated pairs (selection demo_balanced)."""
+def _demo_scorer(
+    model: Any, trajectories: list, code: Callable[[np.ndarray], np.ndarray] = scaled
+) -> Callable[[], float]:
+    """The greedy action's balanced accuracy on the demonstrated pairs (selection demo_balanced);
+    ``code``: phi(s) -> the policy's observation (:func:`observation_code`)."""
     import torch
 
     from nirl_mj.data.trajectory import stack_pairs
     from nirl_mj.learn.predictability import balanced_accuracy
 
     phi, actions = stack_pairs(trajectories)
-    x = torch.as_tensor(scaled(phi))
+    x = torch.as_tensor(code(phi))
 
     def score() -> float:
         with torch.no_grad():
@@ -437,8 +439,9 @@ def train_rl(
     train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
     venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy, config)
     callbacks = []
+    code, _ = observation_code(config)
     if adversarial:
-        expert = adv.expert_transitions(trajectories, scaled, absorbing=adv.variant_of(algo).absorbing)
+        expert = adv.expert_transitions(trajectories, code, absorbing=adv.variant_of(algo).absorbing)
         reward = adv.AdversarialReward(algo, config["gamma"], expert, seed)
         if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
             reward.load_state(adv.read_discriminator(run))
@@ -454,7 +457,7 @@ def train_rl(
     done_before = list(record["train_seeds"])
     scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
     if selection == "demo_balanced":
-        scorer = _demo_scorer(model, trajectories)
+        scorer = _demo_scorer(model, trajectories, code)
     elif selection == "validation_success":
         scorer = _validation_scorer(model, record, task, seed)
 

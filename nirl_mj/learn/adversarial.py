@@ -1,8 +1,9 @@
 """The discriminators of GAIL (Ho & Ermon 2016) and AIRL (Fu, Luo & Levine 2018), on torch.
 
 Both classify state-action pairs as the expert's (label 1) or the learner's (label 0) with the
-logistic loss, and hand the policy learner a reward derived from the classifier. Inputs are
-phi(s) scaled to [0, 1] (16 values, as the RL reference sees them) and the action index 0..5.
+logistic loss, and hand the policy learner a reward derived from the classifier. Inputs are what
+the policy sees of phi(s), ``n_inputs`` values (16 scaled to [0, 1], or 17 in NIRL's bearing code:
+``experiments.rl.observation_code``), and the action index 0..5.
 
 - **GAIL**: D(s, a) = sigmoid(l(s, a)), l an MLP with one output per action. The policy's
   reward is -ln(1 - D(s, a)) = softplus(l(s, a)), the form of Ho & Ermon's algorithm 1 with
@@ -74,12 +75,12 @@ def mlp(n_in: int, n_out: int, hidden: int, generator: torch.Generator) -> torch
 
 
 class Inputs:
-    """The networks' inputs: x (N, 16) scaled phi(s); with an absorbing state, one more column, 1 at
-    s_a (``absorbing`` (N,) bool) and 0 elsewhere."""
+    """The networks' inputs: x (N, n_inputs) coded phi(s); with an absorbing state, one more column,
+    1 at s_a (``absorbing`` (N,) bool) and 0 elsewhere."""
 
-    def __init__(self, absorbing: bool) -> None:
+    def __init__(self, absorbing: bool, n_inputs: int = N_INPUTS) -> None:
         self.absorbing = absorbing
-        self.width = N_INPUTS + int(absorbing)
+        self.width = n_inputs + int(absorbing)
 
     def __call__(self, x: torch.Tensor, absorbing: torch.Tensor | None = None) -> torch.Tensor:
         if not self.absorbing:
@@ -91,7 +92,7 @@ class Inputs:
         return torch.cat([x * (1 - marks[:, None]), marks[:, None]], dim=1)
 
     def absorbing_state(self) -> torch.Tensor:
-        """s_a as an input row (1, 17)."""
+        """s_a as an input row (1, n_inputs + 1)."""
         row = torch.zeros((1, self.width))
         row[0, -1] = 1.0
         return row
@@ -103,13 +104,15 @@ class GailDiscriminator(torch.nn.Module):
 
     kind = "gail"
 
-    def __init__(self, hidden: int = 64, seed: int = 0, absorbing: bool = False) -> None:
+    def __init__(
+        self, hidden: int = 64, seed: int = 0, absorbing: bool = False, n_inputs: int = N_INPUTS
+    ) -> None:
         super().__init__()
-        self.inputs = Inputs(absorbing)
+        self.inputs = Inputs(absorbing, n_inputs)
         self.net = mlp(self.inputs.width, N_ACTIONS, hidden, torch.Generator().manual_seed(seed))
 
     def logits(self, x, actions, x_next=None, terminal=None, log_pi=None, absorbing=None) -> torch.Tensor:
-        """l(s, a) (N,): x (N, 16) scaled phi(s), actions (N,) int; ``absorbing`` (N,) bool marks
+        """l(s, a) (N,): x (N, n_inputs) coded phi(s), actions (N,) int; ``absorbing`` (N,) bool marks
         the pairs (s_a, ., s_a) (their x is not read)."""
         return self.net(self.inputs(x, absorbing)).gather(1, actions.long()[:, None])[:, 0]
 
@@ -125,12 +128,18 @@ class AirlDiscriminator(torch.nn.Module):
     kind = "airl"
 
     def __init__(
-        self, gamma: float, hidden: int = 64, seed: int = 0, absorbing: bool = False, state_only: bool = False
+        self,
+        gamma: float,
+        hidden: int = 64,
+        seed: int = 0,
+        absorbing: bool = False,
+        state_only: bool = False,
+        n_inputs: int = N_INPUTS,
     ) -> None:
         super().__init__()
         generator = torch.Generator().manual_seed(seed)
         self.gamma = float(gamma)
-        self.inputs = Inputs(absorbing)
+        self.inputs = Inputs(absorbing, n_inputs)
         self.state_only = state_only
         self.g = mlp(self.inputs.width, 1 if state_only else N_ACTIONS, hidden, generator)
         self.h = mlp(self.inputs.width, 1, hidden, generator)
@@ -160,7 +169,7 @@ class AirlDiscriminator(torch.nn.Module):
         return logits
 
     def reward(self, x: np.ndarray) -> np.ndarray:
-        """The learned reward g(s, .) (N, 6) in the scaled states x (N, 16); a state-only g(s) is
+        """The learned reward g(s, .) (N, 6) in the coded states x (N, n_inputs); a state-only g(s) is
         the same for every action."""
         with torch.no_grad():
             g = self.g(self.inputs(torch.as_tensor(np.asarray(x, dtype=np.float32)))).numpy()
@@ -185,7 +194,7 @@ def gradient_penalty(
 ) -> torch.Tensor:
     """R1: (weight / 2) mean_i ||d l_i / d(x_i, x'_i)||^2 over a batch of expert pairs.
     ``logits(x, x_next)`` (N,) must read x (x_next may go unread, as GAIL's does); x and x_next
-    (N, 16) scaled phi. The result keeps its graph, for backward()."""
+    (N, n_inputs) coded phi. The result keeps its graph, for backward()."""
     x, x_next = x.detach().requires_grad_(True), x_next.detach().requires_grad_(True)
     grads = torch.autograd.grad(logits(x, x_next).sum(), [x, x_next], create_graph=True, allow_unused=True)
     squares = sum((g**2).sum(dim=1) for g in grads if g is not None)
@@ -193,14 +202,21 @@ def gradient_penalty(
 
 
 def make_discriminator(
-    kind: str, gamma: float, seed: int = 0, absorbing: bool = False, state_only: bool = False
+    kind: str,
+    gamma: float,
+    seed: int = 0,
+    absorbing: bool = False,
+    state_only: bool = False,
+    n_inputs: int = N_INPUTS,
 ) -> GailDiscriminator | AirlDiscriminator:
-    """The discriminator of ``kind`` ("gail" or "airl"), with an absorbing state if asked, and for
-    AIRL a state-only g(s) if asked."""
+    """The discriminator of ``kind`` ("gail" or "airl") on ``n_inputs`` coded values of phi(s), with
+    an absorbing state if asked, and for AIRL a state-only g(s) if asked."""
     if kind == "gail":
         if state_only:
             raise ValueError("a state-only reward is AIRL's: GAIL's discriminator reads the action")
-        return GailDiscriminator(seed=seed, absorbing=absorbing)
+        return GailDiscriminator(seed=seed, absorbing=absorbing, n_inputs=n_inputs)
     if kind == "airl":
-        return AirlDiscriminator(gamma, seed=seed, absorbing=absorbing, state_only=state_only)
+        return AirlDiscriminator(
+            gamma, seed=seed, absorbing=absorbing, state_only=state_only, n_inputs=n_inputs
+        )
     raise ValueError(f"unknown discriminator {kind!r}: accepted: gail, airl")
