@@ -184,9 +184,18 @@ BUILTIN_METHODS = {
     ),
     # adversarial imitation: PPO (SB3's settings but 1024-decision rollouts, 50,000 decisions) on a
     # discriminator's reward, its checkpoint chosen by the paper's rule (balanced accuracy on the
-    # demonstrations)
+    # demonstrations); AIRL's policy and discriminator see phi(s) in NIRL's bearing code, GAIL's
+    # scaled (each the higher on the development domain: tasks/ablations/adversarial_bearing.toml)
     "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
-    "AIRL": MethodSpec("AIRL", "rl", algo="airl", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
+    "AIRL": MethodSpec(
+        "AIRL",
+        "rl",
+        algo="airl",
+        steps=RL_STEPS,
+        selection="demo_balanced",
+        envs=RL_ENVS,
+        settings={"inputs": "bearing"},
+    ),
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
     "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
     "AIRL-absorbing": MethodSpec("AIRL-absorbing", "rl", algo="airl-absorbing", steps=50_000),
