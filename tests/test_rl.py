@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -427,7 +428,7 @@ def test_gail_and_airl_may_see_phi_as_nirls_bearing_code_policy_and_discriminato
     from helpers import OPEN
 
     from nirl_mj.data.dataset import load_dataset
-    from nirl_mj.data.rundir import RunError
+    from nirl_mj.data.rundir import DISCRIMINATOR_FILE, RunError
     from nirl_mj.experiments import rl
     from nirl_mj.experiments.adversarial import load_discriminator
     from nirl_mj.experiments.subjects import run_subject
@@ -439,11 +440,19 @@ def test_gail_and_airl_may_see_phi_as_nirls_bearing_code_policy_and_discriminato
     model = sb3.PPO.load(run / "model.zip", device="cpu")
     assert model.observation_space.shape == (17,) and record["config"]["inputs"] == "bearing"
     kind, absorbing = algo.split("-")[0], algo.endswith("absorbing")
-    disc = load_discriminator(run, kind, 0.99, n_inputs=17)
+    disc = load_discriminator(run, kind, 0.99)  # the code and the absorbing state its record names
     assert disc.inputs.width == 17 + absorbing and disc.inputs.absorbing == absorbing
-    if absorbing:  # 18 columns are neither 16 inputs nor 16 and an absorbing state
-        with pytest.raises(RunError, match="reads 18 inputs, not 16"):
-            load_discriminator(run, kind, 0.99)
+    bare = tmp_path / "bare"  # a discriminator file without its run: told its width
+    bare.mkdir()
+    shutil.copy(run / DISCRIMINATOR_FILE, bare)
+    assert load_discriminator(bare, kind, 0.99, n_inputs=17).inputs.absorbing == absorbing
+    other = tmp_path / "other"  # a record that names another code is refused, not misread
+    shutil.copytree(run, other)
+    saved = json.loads((other / "run.json").read_text())
+    del saved["config"]["inputs"]
+    (other / "run.json").write_text(json.dumps(saved))
+    with pytest.raises(RunError, match=f"reads {17 + absorbing} inputs, not 16.* as its run records"):
+        load_discriminator(other, kind, 0.99)
     # the selection scored the policy on the demonstrations as the policy sees them
     code, _ = rl.observation_code(record["config"])
     assert rl._demo_scorer(model, load_dataset(demos), code)() == record["scores"][-1]["score"]

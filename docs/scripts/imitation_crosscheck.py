@@ -3,8 +3,9 @@
 Trains ``imitation.algorithms.adversarial.airl.AIRL`` (or ``gail.GAIL``) of the imitation library
 (1.0.1, with the Stable-Baselines3 and Gymnasium 0.29 it pins) on run r of Table I
 (tasks/table1.toml: tasks/navigate.toml, 20 static obstacles, 2 m/s) with the inputs our GAIL / AIRL
-rows get, then tests its final PPO policy on run r's 100 test arenas as our Table I cell does, and
-writes ``docs/results/imitation_crosscheck/<algo>_run<r>.json`` atomically.
+rows got until 2026-11-30 (phi(s) scaled; Table I's AIRL reads NIRL's bearing code since), then
+tests its final PPO policy on run r's 100 test arenas as our Table I cell does, and writes
+``docs/results/imitation_crosscheck/<algo>_run<r>.json`` atomically.
 
 It runs in its own virtual environment (the library pins gymnasium 0.29; our package asks for 1.x),
 built outside the repository:
@@ -23,7 +24,8 @@ built outside the repository:
      --output-norm none: an ablation without NormalizedRewardNet, written to
      <algo>_run<r>_no-output-norm.json; --model-dir: where the final PPO model is saved)
 
-What it shares with our rows (``nirl_mj.experiments.rl``, ``nirl_mj.experiments.adversarial``):
+What it shares with our rows as they were computed then (``nirl_mj.experiments.rl``,
+``nirl_mj.experiments.adversarial``):
 run r's 30 demonstrations (``OUT/demos/runNNN.npz`` of runs/table1_fair), terminal where the
 demonstration ended in a terminal outcome (``nirl_mj.data.transitions``); the observation phi(s)
 scaled to [0, 1] (``rl.scaled``); 8 ``NavigationEnv(task, observation="features")`` in one

@@ -33,7 +33,7 @@ Needs the optional extra ``nirl-mj[gym]``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -245,19 +245,31 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
-def load_discriminator(run_dir, kind: str, gamma: float, n_inputs: int = N_INPUTS) -> Any:
-    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)) on
-    ``n_inputs`` coded values (the run's observation's width), with an absorbing state or a
-    state-only g(s) if it was trained with one."""
-    arrays = read_discriminator(RunDir(run_dir))
+def load_discriminator(run_dir, kind: str, gamma: float, n_inputs: int | None = None) -> Any:
+    """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
+    an absorbing state or a state-only g(s) if it was trained with one. In a run directory its
+    inputs (the run's observation code, ``experiments.rl.observation_code``) and absorbing state are
+    the run record's; a bare discriminator file reads ``n_inputs`` (default 16) coded values, one
+    more being an absorbing state."""
+    run = RunDir(run_dir)
+    arrays = read_discriminator(run)
     first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
     state_only = kind == "airl" and arrays["g.4.weight"].shape[0] == 1  # (outputs, hidden)
-    if first.shape[1] not in (n_inputs, n_inputs + 1):
-        raise RunError(f"{run_dir}'s discriminator reads {first.shape[1]} inputs, not {n_inputs} (or one "
-                       "more, an absorbing state): load it with its run's observation code")  # fmt: skip
-    absorbing = first.shape[1] == n_inputs + 1
+    if run.is_run:
+        from nirl_mj.experiments.rl import observation_code
+
+        record = run.read_record()
+        width = observation_code(record.get("config", {}))[1].shape[0]
+        absorbing = variant_of(record["algo"]).absorbing
+    else:
+        width = N_INPUTS if n_inputs is None else n_inputs
+        absorbing = first.shape[1] == width + 1
+    if first.shape[1] != width + absorbing:
+        raise RunError(f"{run_dir}'s discriminator reads {first.shape[1]} inputs, not {width}"
+                       + (" and an absorbing state" if absorbing else "")
+                       + (" as its run records" if run.is_run else ""))  # fmt: skip
     discriminator = make_discriminator(
-        kind, gamma, absorbing=absorbing, state_only=state_only, n_inputs=n_inputs
+        kind, gamma, absorbing=absorbing, state_only=state_only, n_inputs=width
     )
     _load_weights(discriminator, arrays)
     return discriminator
@@ -267,13 +279,12 @@ class AirlReward:
     """An AIRL run's learned reward g(s, a) on phi(s), with RewardModel's reading methods (so reward
     maps and Rerun recordings show it as they show r_theta). Units: nats, per decision."""
 
-    def __init__(
-        self, run_dir, gamma: float, scale: Callable[[np.ndarray], np.ndarray], n_inputs: int = N_INPUTS
-    ) -> None:
-        """``scale``: phi(s) -> the ``n_inputs`` values the run was trained on
-        (``experiments.rl.observation_code``)."""
-        self.discriminator = load_discriminator(run_dir, "airl", gamma, n_inputs)
-        self.scale = scale
+    def __init__(self, run_dir, gamma: float) -> None:
+        """phi(s) goes through the run's own observation code (``experiments.rl.observation_code``)."""
+        from nirl_mj.experiments.rl import observation_code
+
+        self.discriminator = load_discriminator(run_dir, "airl", gamma)
+        self.scale = observation_code(RunDir(run_dir).read_record().get("config", {}))[0]
 
     def rewards_all_actions(self, phi: np.ndarray) -> np.ndarray:
         """g(s, a) for every action: phi (N, 16) -> (N, 6)."""

@@ -50,10 +50,8 @@ class Subject:
         record = self.run.read_record()
         if record.get("kind") == "rl" and str(record.get("algo")).startswith("airl"):
             from nirl_mj.experiments.adversarial import AirlReward
-            from nirl_mj.experiments.rl import observation_code
 
-            code, box = observation_code(record["config"])
-            return AirlReward(self.run.path, record["config"]["gamma"], code, box.shape[0])
+            return AirlReward(self.run.path, record["config"]["gamma"])
         if not self.run.has_reward:
             return None
         return RewardModel.from_dict(self.run.read_reward(), str(self.run.path))

@@ -38,7 +38,7 @@ disentangled form (their section 5, eq. 4 with g = g(s)); ``reward(x)`` then giv
 same g(s), so a reward map is flat across actions.
 
 **Gradient penalty** (:func:`gradient_penalty`): the zero-centred R1 penalty of Mescheder, Geiger &
-Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs in the scaled inputs x,
+Nowozin (2018), (lambda / 2) E_expert ||grad_x l||^2 over the expert's pairs in the coded inputs x,
 added to the logistic loss. For AIRL the gradient is f's, in both s and s': ln pi(a | s) depends on
 s too, but it is the policy's, not the discriminator's to move, so it is left out (strictly R1 of
 D would include it). Kostrikov et al. (2019) penalise the discriminator with lambda = 10, but with
