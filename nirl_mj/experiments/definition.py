@@ -185,7 +185,8 @@ BUILTIN_METHODS = {
     # adversarial imitation: PPO (SB3's settings but 1024-decision rollouts, 50,000 decisions) on a
     # discriminator's reward, its checkpoint chosen by the paper's rule (balanced accuracy on the
     # demonstrations); AIRL's policy and discriminator see phi(s) in NIRL's bearing code, GAIL's
-    # scaled (each the higher on the development domain: tasks/ablations/adversarial_bearing.toml)
+    # scaled, and AIRL's tests take its policy's mode, GAIL's draw from it (each the higher on the
+    # development domain: tasks/ablations/adversarial_bearing.toml, rl_greedy.toml)
     "GAIL": MethodSpec("GAIL", "rl", algo="gail", steps=RL_STEPS, selection="demo_balanced", envs=RL_ENVS),
     "AIRL": MethodSpec(
         "AIRL",
@@ -194,7 +195,7 @@ BUILTIN_METHODS = {
         steps=RL_STEPS,
         selection="demo_balanced",
         envs=RL_ENVS,
-        settings={"inputs": "bearing"},
+        settings={"inputs": "bearing", "act": "greedy"},
     ),
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
     "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
