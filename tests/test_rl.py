@@ -245,6 +245,8 @@ def test_the_table_rows_of_ppo_gail_and_airl_select_and_say_what_they_read():
     )
     assert rows["PPO-reward"].settings["act"] == "greedy"  # validated and tested by its mode
     assert rows["GAIL"].selection == rows["AIRL"].selection == "demo_balanced"
+    # each chosen on the development domain (tasks/ablations/adversarial_bearing.toml, rl_greedy.toml)
+    assert rows["AIRL"].settings == {"inputs": "bearing", "act": "greedy"} and rows["GAIL"].settings == {}
     assert "task_success_selection" not in method_reads(rows["GAIL"])
     identity = {m["name"]: m for m in experiment.identity()["methods"]}
     assert identity["GAIL"]["selection"] == "demo_balanced"
@@ -446,6 +448,10 @@ def test_gail_and_airl_may_see_phi_as_nirls_bearing_code_policy_and_discriminato
     bare.mkdir()
     shutil.copy(run / DISCRIMINATOR_FILE, bare)
     assert load_discriminator(bare, kind, 0.99, n_inputs=17).inputs.absorbing == absorbing
+    other_kind = "gail" if kind == "airl" else "airl"
+    for wrong in ({"kind": other_kind}, {"n_inputs": 16}):  # the run's record decides; a mismatch is refused
+        with pytest.raises(RunError, match=f"is a {algo} run on 17 inputs"):
+            load_discriminator(run, **{"kind": kind, "gamma": 0.99, **wrong})
     other = tmp_path / "other"  # a record that names another code is refused, not misread
     shutil.copytree(run, other)
     saved = json.loads((other / "run.json").read_text())

@@ -3,7 +3,7 @@
 Trains ``imitation.algorithms.adversarial.airl.AIRL`` (or ``gail.GAIL``) of the imitation library
 (1.0.1, with the Stable-Baselines3 and Gymnasium 0.29 it pins) on run r of Table I
 (tasks/table1.toml: tasks/navigate.toml, 20 static obstacles, 2 m/s) with the inputs our GAIL / AIRL
-rows got until 2026-11-30 (phi(s) scaled; Table I's AIRL reads NIRL's bearing code since), then
+rows got until 2026-11-30 (phi(s) scaled, tested sampled; Table I's AIRL differs since), then
 tests its final PPO policy on run r's 100 test arenas as our Table I cell does, and writes
 ``docs/results/imitation_crosscheck/<algo>_run<r>.json`` atomically.
 

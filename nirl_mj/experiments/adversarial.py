@@ -249,19 +249,23 @@ def load_discriminator(run_dir, kind: str, gamma: float, n_inputs: int | None = 
     """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
     an absorbing state or a state-only g(s) if it was trained with one. In a run directory its
     inputs (the run's observation code, ``experiments.rl.observation_code``) and absorbing state are
-    the run record's; a bare discriminator file reads ``n_inputs`` (default 16) coded values, one
-    more being an absorbing state."""
+    the run record's (``kind`` and a given ``n_inputs`` must agree with it); a bare discriminator
+    file reads ``n_inputs`` (default 16) coded values, one more being an absorbing state."""
     run = RunDir(run_dir)
     arrays = read_discriminator(run)
-    first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
-    state_only = kind == "airl" and arrays["g.4.weight"].shape[0] == 1  # (outputs, hidden)
     if run.is_run:
         from nirl_mj.experiments.rl import observation_code
 
         record = run.read_record()
         width = observation_code(record.get("config", {}))[1].shape[0]
-        absorbing = variant_of(record["algo"]).absorbing
-    else:
+        variant = variant_of(record["algo"])
+        if variant.kind != kind or n_inputs not in (None, width):
+            raise RunError(f"{run_dir} is a {record['algo']} run on {width} inputs, not a {kind} "
+                           f"discriminator on {n_inputs or width}")  # fmt: skip
+        absorbing = variant.absorbing
+    first = arrays["net.0.weight" if kind == "gail" else "g.0.weight"]  # (hidden, inputs)
+    state_only = kind == "airl" and arrays["g.4.weight"].shape[0] == 1  # (outputs, hidden)
+    if not run.is_run:
         width = N_INPUTS if n_inputs is None else n_inputs
         absorbing = first.shape[1] == width + 1
     if first.shape[1] != width + absorbing:
