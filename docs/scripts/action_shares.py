@@ -13,13 +13,12 @@ command as the first line).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+from rl_free_actions import emit, finished_runs  # docs/scripts, beside this file
 
-from nirl_mj.data.atomic import write_text
 from nirl_mj.data.features import ACTION_NAMES
 
 
@@ -31,21 +30,17 @@ def lines(out: Path, method: str, runs: int | None, arenas: int) -> list[str]:
     from nirl_mj.sim import spec as specs
     from nirl_mj.sim.task import make_env
 
-    seed = json.loads((out / "experiment.json").read_text())["seed"]
     found = []
-    for record_file in sorted((out / "runs" / method).glob("*/run.json"), key=lambda p: int(p.parent.name)):
-        record = json.loads(record_file.read_text())
-        run_seed = int(record_file.parent.name)
-        if (runs is not None and run_seed - seed >= runs) or record.get("steps_done", 0) < record["steps"]:
-            continue
-        policy, _ = load_rl_policy(record_file.parent, seed=run_seed)
-        env = make_env(specs.from_dict(record["task"], str(record_file)))
+    for run, run_dir, record in finished_runs(out, method, runs):
+        run_seed = int(run_dir.name)
+        policy, _ = load_rl_policy(run_dir, seed=run_seed)
+        env = make_env(specs.from_dict(record["task"], str(run_dir / "run.json")))
         metrics, episodes = evaluate(env, policy, domain_seeds("validation", run_seed, arenas))
         actions = np.concatenate([t.actions for t in episodes])
         shares = 100 * np.bincount(actions, minlength=len(ACTION_NAMES)) / len(actions)
         reached = round(metrics["success_rate"] * arenas)
         per_action = "  ".join(f"{n} {v:4.1f}" for n, v in zip(ACTION_NAMES, shares, strict=True))
-        found.append(f"{method}  run {run_seed - seed:2d}  success {reached:2d}/{arenas}  {per_action}")
+        found.append(f"{method}  run {run:2d}  success {reached:2d}/{arenas}  {per_action}")
     return found
 
 
@@ -63,12 +58,7 @@ def main() -> None:
               "# method, run, successes on the validation arenas of its seed, "
               "percent of decisions per action"]  # fmt: skip
     body = [line for method in args.methods for line in lines(args.out, method, args.runs, args.arenas)]
-    if not body:
-        raise SystemExit(f"{args.out}: no finished RL run of {', '.join(args.methods)}")
-    text = "\n".join([*header, *body]) + "\n"
-    if args.write:
-        write_text(args.write, text)
-    print(text, end="")
+    emit(header, body, args.write, f"{args.out}: no finished RL run of {', '.join(args.methods)}")
 
 
 if __name__ == "__main__":

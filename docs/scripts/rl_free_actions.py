@@ -40,19 +40,39 @@ def actions_line(policy) -> str:
     return f"{letters[:9]} | {letters[9:]}"
 
 
-def lines(out: Path, method: str, runs: int | None) -> list[str]:
-    """One line per finished run and checkpoint (selected, last) of ``method`` in ``out``."""
-    from nirl_mj.experiments.rl import load_rl_policy
-
+def finished_runs(out: Path, method: str, runs: int | None) -> list[tuple[int, Path, dict]]:
+    """(run r, its directory, its record) of every finished RL run of ``method`` in the compare
+    experiment ``out`` (its runs OUT/runs/METHOD/SEED, run r of seed ``experiment seed + r``), runs
+    0..``runs``-1 only if given."""
     seed = json.loads((out / "experiment.json").read_text())["seed"]
     found = []
     for record_file in sorted((out / "runs" / method).glob("*/run.json"), key=lambda p: int(p.parent.name)):
         record = json.loads(record_file.read_text())
         run = int(record_file.parent.name) - seed
-        if (runs is not None and run >= runs) or record.get("steps_done", 0) < record["steps"]:
-            continue
+        if (runs is None or run < runs) and record.get("steps_done", 0) >= record["steps"]:
+            found.append((run, record_file.parent, record))
+    return found
+
+
+def emit(header: list[str], body: list[str], write: Path | None, nothing: str) -> None:
+    """Prints the header and body lines, and stores them atomically in ``write`` if given; exits
+    with ``nothing`` when there is no body line."""
+    if not body:
+        raise SystemExit(nothing)
+    text = "\n".join([*header, *body]) + "\n"
+    if write:
+        write_text(write, text)
+    print(text, end="")
+
+
+def lines(out: Path, method: str, runs: int | None) -> list[str]:
+    """One line per finished run and checkpoint (selected, last) of ``method`` in ``out``."""
+    from nirl_mj.experiments.rl import load_rl_policy
+
+    found = []
+    for run, run_dir, record in finished_runs(out, method, runs):
         for which in ("selected", "last"):
-            policy, _ = load_rl_policy(record_file.parent, sampled=False, policy=which)
+            policy, _ = load_rl_policy(run_dir, sampled=False, policy=which)
             steps = record["selected"]["steps"] if which == "selected" else record["steps_done"]
             found.append(f"run {run:2d} {which:8s} {steps:6d}  {actions_line(policy)}")
     return found
@@ -69,12 +89,7 @@ def main() -> None:
               "# run, checkpoint, decisions; the mode's action at V = 1..9, I = 0 | I = 1 "
               "(F forward, l left30, L left60, r right30, R right60, B backward)"]  # fmt: skip
     body = lines(args.out, args.method, args.runs)
-    if not body:
-        raise SystemExit(f"{args.out}: no finished RL run of {args.method}")
-    text = "\n".join([*header, *body]) + "\n"
-    if args.write:
-        write_text(args.write, text)
-    print(text, end="")
+    emit(header, body, args.write, f"{args.out}: no finished RL run of {args.method}")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ algorithm 1 and in the imitation library's ``AdversarialTrainer``: PPO collects 
 discriminator takes ``epochs`` passes of minibatch Adam steps on that rollout against as many
 pairs drawn from the demonstrations (:class:`DiscriminatorTraining`), then PPO updates its policy
 on the rollout. The observation is phi(s) scaled to [0, 1], as for the RL reference, or with
-``settings.inputs = "bearing"`` NIRL's bearing code (``experiments.rl.observation_code``); the
+``settings.inputs = "bearing"`` NIRL's bearing code (``experiments.observation_code``); the
 discriminator reads the same observation, and the demonstrations, the experiment's 30, go through
 the same code.
 
@@ -44,6 +44,7 @@ from nirl_mj.data.atomic import write_npz
 from nirl_mj.data.rundir import DISCRIMINATOR_FILE, RunDir, RunError
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.data.transitions import Transitions
+from nirl_mj.experiments.observation_code import observation_code
 from nirl_mj.learn.adversarial import (
     N_INPUTS,
     PENALTY_WEIGHT,
@@ -248,14 +249,12 @@ def read_discriminator(run: RunDir) -> dict[str, np.ndarray]:
 def load_discriminator(run_dir, kind: str, gamma: float, n_inputs: int | None = None) -> Any:
     """The trained discriminator of a GAIL or AIRL run (AIRL's ``reward(x)`` is its g(s, .)), with
     an absorbing state or a state-only g(s) if it was trained with one. In a run directory its
-    inputs (the run's observation code, ``experiments.rl.observation_code``) and absorbing state are
+    inputs (the run's observation code, ``experiments.observation_code``) and absorbing state are
     the run record's (``kind`` and a given ``n_inputs`` must agree with it); a bare discriminator
     file reads ``n_inputs`` (default 16) coded values, one more being an absorbing state."""
     run = RunDir(run_dir)
     arrays = read_discriminator(run)
     if run.is_run:
-        from nirl_mj.experiments.rl import observation_code
-
         record = run.read_record()
         width = observation_code(record.get("config", {}))[1].shape[0]
         variant = variant_of(record["algo"])
@@ -284,9 +283,7 @@ class AirlReward:
     maps and Rerun recordings show it as they show r_theta). Units: nats, per decision."""
 
     def __init__(self, run_dir, gamma: float) -> None:
-        """phi(s) goes through the run's own observation code (``experiments.rl.observation_code``)."""
-        from nirl_mj.experiments.rl import observation_code
-
+        """phi(s) goes through the run's own observation code (``experiments.observation_code``)."""
         self.discriminator = load_discriminator(run_dir, "airl", gamma)
         self.scale = observation_code(RunDir(run_dir).read_record().get("config", {}))[0]
 

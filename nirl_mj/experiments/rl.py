@@ -53,10 +53,10 @@ from nirl_mj.data.rundir import (
     RunDir,
     RunError,
 )
+from nirl_mj.experiments.observation_code import observation_code, scaled
 from nirl_mj.experiments.reads import rl_reads
 from nirl_mj.experiments.seeds import domain_seed, domain_seeds
 from nirl_mj.sim import spec as specs
-from nirl_mj.sim.observations import feature_bounds
 
 ADVERSARIAL = ("gail", "airl", "gail-absorbing", "airl-absorbing", "gail-norm", "airl-norm",
                "gail-gp", "airl-gp", "gail-gp1", "airl-gp1", "gail-gp0_1", "airl-gp0_1",
@@ -195,30 +195,6 @@ def run_config(
             raise ValueError(f"envs = {envs}: must divide PPO's rollout of {config['n_steps']} decisions")
         config["n_steps"] //= envs
     return {**config, "selection": selection, "envs": envs}
-
-
-_SCALE = 1.0 / feature_bounds()[1]  # phi / its upper bounds: every input in [0, 1]
-
-
-def scaled(phi: np.ndarray) -> np.ndarray:
-    """phi(s) (..., 16) as the networks see it, float32 in [0, 1]."""
-    return (np.asarray(phi, dtype=np.float32) * _SCALE).astype(np.float32)
-
-
-def observation_code(config: dict) -> tuple[Callable[[np.ndarray], np.ndarray], Any]:
-    """What a run's networks see of phi(s) (..., 16), float32, and its bounds as a Gymnasium
-    ``Box``: :func:`scaled`, or with ``inputs = "bearing"`` NIRL's default code, V's sector centre
-    as (cos, sin) (17 values in [-1, 1])."""
-    import gymnasium
-
-    if config.get("inputs", "scaled") == "scaled":
-        return scaled, gymnasium.spaces.Box(0.0, 1.0, (len(_SCALE),), np.float32)
-    from nirl_mj.learn.inputs import NetworkInputs
-
-    code = NetworkInputs(scaled=True, bearing=True)
-    return (lambda phi: code(phi).astype(np.float32)), gymnasium.spaces.Box(
-        -1.0, 1.0, (code.size,), np.float32
-    )
 
 
 def _algorithm(algo: str):

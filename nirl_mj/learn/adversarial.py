@@ -3,7 +3,7 @@
 Both classify state-action pairs as the expert's (label 1) or the learner's (label 0) with the
 logistic loss, and hand the policy learner a reward derived from the classifier. Inputs are what
 the policy sees of phi(s), ``n_inputs`` values (16 scaled to [0, 1], or 17 in NIRL's bearing code:
-``experiments.rl.observation_code``), and the action index 0..5.
+``experiments.observation_code``), and the action index 0..5.
 
 - **GAIL**: D(s, a) = sigmoid(l(s, a)), l an MLP with one output per action. The policy's
   reward is -ln(1 - D(s, a)) = softplus(l(s, a)), the form of Ho & Ermon's algorithm 1 with
