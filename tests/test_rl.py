@@ -520,6 +520,7 @@ def test_act_greedy_drives_validation_and_tests_by_the_mode_and_trains_as_sample
 
     from nirl_mj.experiments import rl
     from nirl_mj.experiments.evaluation import evaluate
+    from nirl_mj.sim.observations import feature_bounds
     from nirl_mj.sim.task import make_env
 
     monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
@@ -541,14 +542,14 @@ def test_act_greedy_drives_validation_and_tests_by_the_mode_and_trains_as_sample
     assert scored == records["greedy"]["scores"][-1]["score"]
     loaded, _ = rl.load_rl_policy(runs["greedy"], policy="last", shares=True)
     rng = np.random.default_rng(0)
-    for phi in rng.uniform(0, 1, (20, 16)) * rl.feature_bounds()[1]:
+    for phi in rng.uniform(0, 1, (20, 16)) * feature_bounds()[1]:
         mode, _ = models["greedy"].predict(rl.scaled(phi), deterministic=True)
         assert loaded(phi) == int(mode)
     # a run that does not set act is driven sampled, as runs recorded before the setting existed
     assert "act" not in rl.run_config("ppo", "validation_success", 2)
     sampled, _ = rl.load_rl_policy(runs["sampled"], policy="last", seed=5, shares=True)
     again = rl.model_policy(models["sampled"], {**records["sampled"], "config": {}}, None, 5, True)
-    draws = [(sampled(phi), again(phi)) for phi in rng.uniform(0, 1, (50, 16)) * rl.feature_bounds()[1]]
+    draws = [(sampled(phi), again(phi)) for phi in rng.uniform(0, 1, (50, 16)) * feature_bounds()[1]]
     assert all(a == b for a, b in draws) and len({a for a, _ in draws}) > 1  # drawn, not the mode
     with pytest.raises(ValueError, match="settings.act = 'mode': accepted: sampled, greedy"):
         rl.tuned("ppo", {"act": "mode"})
