@@ -198,15 +198,22 @@ def test_every_checkpoint_is_scored_on_the_demonstrations_and_the_best_kept(tmp_
     assert all(0 <= chosen[0](p) < 6 for p in phi)
 
 
-def test_vectorised_training_draws_every_arena_once_and_scores_its_own_episodes(tmp_path):
+def test_vectorised_training_draws_every_arena_once_and_scores_its_own_episodes(tmp_path, monkeypatch):
+    import tempfile
+
     from helpers import OPEN
 
     from nirl_mj.experiments.rl import SUCCESS_WINDOW, train_rl
     from nirl_mj.experiments.seeds import domain_seed
 
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
     run, envs = tmp_path / "run", 4
     record = train_rl(run, OPEN, "ppo", 1024, seed=2, checkpoint_every=512, envs=envs)
     record = train_rl(run, OPEN, "ppo", 2048, seed=2, checkpoint_every=512, envs=envs, resume=True)
+    assert not list(temp.glob("SB3-*"))  # Stable-Baselines3's logger made no SB3-<time> folder there
     seeds = record["train_seeds"]
     # One stream across the environments and the resume: arenas 0, 1, 2, ... of the train domain.
     assert seeds == [domain_seed("train", 2, k) for k in range(len(seeds))]

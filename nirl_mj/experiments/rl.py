@@ -428,6 +428,10 @@ def train_rl(
         model = cls.load(run.model_file(), env=venv, device="cpu")
     else:
         model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
+    # a logger that writes nowhere: without one, each learn() makes an empty tempdir/SB3-<time> folder
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
     if adversarial:
         reward.policy = model.policy
     done_before = list(record["train_seeds"])
