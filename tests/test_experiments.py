@@ -885,6 +885,20 @@ def test_published_cells_are_restored_into_a_lost_directory_and_the_resume_compu
         restore_published(published, experiment, again, again_jobs, cell_id)
 
 
+def test_a_row_that_does_not_train_is_its_renamed_twin_with_the_same_definition(tmp_path):
+    """A Stable-Baselines3 row defined as a saved one but for its name is that row's computation
+    (its seed is the run's, its name only a label); another number of decisions is not."""
+    from nirl_mj.experiments.reuse import method_sources, saved_form
+
+    head = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = {}\n'
+    twin = '[method.{}]\nkind = "rl"\nalgo = "gail"\nselection = "demo_balanced"\nenvs = 8\nsteps = {}\n'
+    saved = saved_form(load_experiment(write_spec(tmp_path, head.format('["GAIL", "rule"]'), "old.toml")))
+    spec = write_spec(tmp_path, head.format('["GAIL-twin", "GAIL-short", "rule"]'), "new.toml")
+    spec.write_text(spec.read_text() + twin.format("GAIL-twin", "50_000") + twin.format("GAIL-short", 2048))
+    sources = method_sources(saved, load_experiment(spec))
+    assert sources == {"GAIL-twin": ["GAIL"], "GAIL-short": [], "rule": ["rule"]}
+
+
 def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_new_name(tmp_path, capsys):
     """A named variant that became the default (``NIRL-policy`` then, ``NIRL`` now) is the same
     computation; one whose resolved settings differ (``NIRL-classifier``) is computed."""

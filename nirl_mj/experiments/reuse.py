@@ -115,8 +115,9 @@ def copy_run(source: Path, target: Path) -> None:
 
 def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     """For each method of ``experiment``, the methods of the saved experiment whose cells are its
-    computation, best first. A method that does not train: its own name with the same definition.
-    A trained learner: every saved method with the same resolved learner settings that it reads
+    computation, best first. A method that does not train (a Stable-Baselines3 row, a reference):
+    every saved method with the same definition but its name, its own name first, then the others by
+    name. A trained learner: every saved method with the same resolved learner settings that it reads
     (the algorithm and the settings of the loop and of its step), its own name first, then the
     others by name (a renamed variant)."""
     from nirl_mj.learn.config import LearnerConfig
@@ -130,8 +131,9 @@ def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     sources = {}
     for method in identity["methods"]:
         name, settings = method["name"], identity["learners"].get(method["name"])
-        if settings is None:  # not a trained learner: its definition is what it computes
-            sources[name] = [name] if old_methods.get(name) == method else []
+        if settings is None:  # not a trained learner: its definition, the name aside, is what it computes
+            twins = [m for m in old_methods if {**old_methods[m], "name": name} == method]
+            sources[name] = sorted(twins, key=lambda m: (m != name, m))
         else:
             settings = LearnerConfig.from_dict(settings).settings_read()
             candidates = dict.fromkeys([name, *sorted(old_learners)])  # ordered, without repeats
