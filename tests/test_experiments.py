@@ -4,6 +4,7 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -431,11 +432,21 @@ def test_serial_sweep_writes_csv_plot_and_table(serial_sweep, capsys):
 
 
 @pytest.mark.parametrize("executor", ["local", "ray"])
-def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, executor):
+def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, executor, monkeypatch):
+    import tempfile
+
     if executor == "ray":
         pytest.importorskip("ray", reason="Ray is optional: pip install 'nirl-mj[ray]' to test it")
+    # a short root of its own (Ray's socket paths must fit 107 bytes), to see what a run leaves there
+    root = Path(tempfile.mkdtemp(prefix="r", dir="/tmp"))
+    monkeypatch.setattr(tempfile, "tempdir", str(root))
+    monkeypatch.delenv("RAY_TMPDIR", raising=False)
     spec, _, reference = serial_sweep
-    assert main(sweep_args(spec, tmp_path / executor, executor)) == 0
+    try:
+        assert main(sweep_args(spec, tmp_path / executor, executor)) == 0
+        assert not list(root.glob("nirl-ray-*"))  # the local Ray cluster's session folder went with it
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
     assert cell_results(tmp_path / executor) == reference
 
 

@@ -279,6 +279,11 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     assert "| **reference:** hand_written | `" in table
     assert main(["leaderboard", str(a), "--out", str(out)]) == 2  # an earlier leaderboard: not replaced
     assert "pass --overwrite" in capsys.readouterr().err
+    killed = out / ".leaderboard.png.1a2b3c4d.tmp.png"  # what a writer killed mid-write leaves
+    killed.write_bytes(b"half a figure")
+    assert main(["leaderboard", str(a), "--out", str(out)]) == 2  # still a leaderboard's folder
+    assert "pass --overwrite" in capsys.readouterr().err
+    assert main(["leaderboard", str(a), "--out", str(out), "--overwrite"]) == 0 and not killed.exists()
     c = compared(tmp_path, "c", '["rule"]', "seed = 5\n")  # another protocol: other test arenas
     capsys.readouterr()
     assert main(["leaderboard", str(a), str(c), "--out", str(tmp_path / "x")]) == 2

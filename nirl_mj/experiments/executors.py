@@ -30,6 +30,9 @@ import json
 import multiprocessing
 import os
 import re
+import shutil
+import sys
+import tempfile
 import time
 import traceback
 from collections import Counter, deque
@@ -385,14 +388,17 @@ class _Ray:
             import ray
         except ImportError:
             raise ExecutorError(RAY_MISSING) from None
-        self.ray, self.started = ray, False
+        self.ray, self.started, self.scratch = ray, False, None
         if not ray.is_initialized():
             try:
                 if address:
                     ray.init(address=address, log_to_driver=False)
                 else:
-                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+                    self.scratch = ray_scratch()
+                    where = {"_temp_dir": self.scratch} if self.scratch else {}
+                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, **where)
             except (ConnectionError, RuntimeError, ValueError) as exc:
+                self._remove_scratch()
                 raise ExecutorError(
                     f"cannot start or reach Ray (address {address or 'local'}): {exc}"
                 ) from None
@@ -417,3 +423,21 @@ class _Ray:
     def close(self) -> None:
         if self.started:
             self.ray.shutdown()
+            self._remove_scratch()
+
+    def _remove_scratch(self) -> None:
+        if self.scratch:
+            shutil.rmtree(self.scratch, ignore_errors=True)
+            self.scratch = None
+
+
+def ray_scratch() -> str | None:
+    """A folder of its own for a local Ray cluster's session (sockets, worker logs), removed when the
+    executor closes: by default Ray leaves ``/tmp/ray/session_<time>`` behind after every start. None
+    where ``RAY_TMPDIR`` is set: the user chose where Ray writes, and Ray keeps what it writes there.
+    Ray's root otherwise (``TMPDIR`` on Linux, ``/tmp`` on macOS), so its socket paths stay as short
+    as Ray's own (a Unix socket's path holds at most 107 bytes)."""
+    if "RAY_TMPDIR" in os.environ:
+        return None
+    root = "/tmp" if sys.platform == "darwin" else tempfile.gettempdir()
+    return tempfile.mkdtemp(prefix="nirl-ray-", dir=root)

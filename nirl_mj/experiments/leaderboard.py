@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from nirl_mj.data.atomic import write_figure, write_text
+from nirl_mj.data.atomic import leftover_temporaries, write_figure, write_text
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import ExperimentError
@@ -212,11 +212,16 @@ def _write(
 ) -> tuple[str, list[Path]]:
     """:func:`write_leaderboard`'s checks of OUT and its files, under OUT's lock."""
     if out.exists():
-        held = {p.name for p in out.iterdir()} if out.is_dir() else {"?"}
+        # a writer killed mid-write leaves its hidden temporary: not another file, and swept below
+        leftovers = leftover_temporaries(out)
+        held = {p.name for p in out.iterdir()} - {p.name for p in leftovers} if out.is_dir() else {"?"}
         if held - set(FILES):
             raise ExperimentError(f"{out} holds other files than a leaderboard's; choose another --out")
         if held and not overwrite:
             raise ExperimentError(f"{out} holds a leaderboard; pass --overwrite to replace it")
+        if overwrite:
+            for path in leftovers:
+                path.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
     summary = points(rows)
     table = markdown(summary, source, reads)
