@@ -5,8 +5,9 @@ length counts the successful tests only."""
 
 import json
 import re
+import subprocess
+import sys
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -81,26 +82,33 @@ def _selected_lines(fig) -> list:
 
 def test_every_training_figure_marks_the_selected_iteration():
     figs = figures.training_figures(_metrics_rows(12), selected=7)
-    try:
-        assert set(figs) == {"margin.png", "cost.png", "weights.png", "training.png"}
-        for name, fig in figs.items():
-            (line,) = _selected_lines(fig)
-            assert line.get_label() == "selected policy (iteration 7)", name
-            assert list(line.get_xdata()) == [7, 7], name  # a vertical line at iteration 7
-            ax = fig.axes[0]
-            assert "selected policy (iteration 7)" in [t.get_text() for t in ax.get_legend().get_texts()], (
-                name
-            )
-            assert ax.get_xlabel().startswith("iteration"), name
-            # a series without any value (validation success of a run that never validated) is left out
-            assert "validation success" not in [line.get_label() for line in ax.get_lines()], name
-    finally:
-        for fig in figs.values():
-            plt.close(fig)
+    assert set(figs) == {"margin.png", "cost.png", "weights.png", "training.png"}
+    for name, fig in figs.items():
+        (line,) = _selected_lines(fig)
+        assert line.get_label() == "selected policy (iteration 7)", name
+        assert list(line.get_xdata()) == [7, 7], name  # a vertical line at iteration 7
+        ax = fig.axes[0]
+        assert "selected policy (iteration 7)" in [t.get_text() for t in ax.get_legend().get_texts()], name
+        assert ax.get_xlabel().startswith("iteration"), name
+        # a series without any value (validation success of a run that never validated) is left out
+        assert "validation success" not in [line.get_label() for line in ax.get_lines()], name
     unmarked = figures.training_figures(_metrics_rows(3))
     assert not any(_selected_lines(fig) for fig in unmarked.values())
-    for fig in unmarked.values():
-        plt.close(fig)
+
+
+def test_drawing_a_figure_changes_no_global_matplotlib_state(tmp_path):
+    """A notebook's or GUI program's backend and open figures stay as they were: nirl_mj draws
+    without pyplot (nirl_mj.inspect.canvas)."""
+    rows = [{"episode": i, **dict.fromkeys(METRIC_KEYS, 0.5 + i)} for i in range(3)]
+    script = (
+        "import matplotlib; matplotlib.use('svg'); import matplotlib.pyplot as plt\n"
+        "mine = plt.figure()\n"
+        "from nirl_mj.inspect import figures\n"
+        f"figures.training_plots({rows!r}, {str(tmp_path)!r}, selected=1)\n"
+        "print(matplotlib.get_backend(), plt.get_fignums(), plt.gcf() is mine)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["svg", "[1]", "True"] and (tmp_path / "margin.png").stat().st_size > 1000
 
 
 def test_paths_figure_has_axes_in_metres_and_always_forward_on_top():
@@ -110,28 +118,19 @@ def test_paths_figure_has_axes_in_metres_and_always_forward_on_top():
         "always forward": [CRASH, episode("collision", [(10, 10), (30, 30)], seed=2)],
     }
     fig = figures.paths_figure(runs, arenas=3)
-    try:
-        assert len(fig.axes) == 2  # as many arenas as every policy drove
-        for ax in fig.axes:
-            assert ax.get_xlabel() == "x (m)" and ax.get_ylabel() == "y (m)"
-            paths = {
-                line.get_label().split(":")[0]: line for line in ax.get_lines() if ":" in line.get_label()
-            }
-            assert set(paths) == set(runs)
-            forward = paths["always forward"]
-            assert forward.get_zorder() > max(
-                p.get_zorder() for n, p in paths.items() if n != "always forward"
-            )
-            assert (
-                forward.get_linewidth() < paths["NIRL"].get_linewidth()
-            )  # NIRL's wider line shows beside it
-            assert forward.get_color() != paths["NIRL"].get_color()
-            labels = [t.get_text() for t in ax.get_legend().get_texts()]
-            assert any(
-                label.startswith("always forward: collided, ") and label.endswith(" m") for label in labels
-            )
-    finally:
-        plt.close(fig)
+    assert len(fig.axes) == 2  # as many arenas as every policy drove
+    for ax in fig.axes:
+        assert ax.get_xlabel() == "x (m)" and ax.get_ylabel() == "y (m)"
+        paths = {line.get_label().split(":")[0]: line for line in ax.get_lines() if ":" in line.get_label()}
+        assert set(paths) == set(runs)
+        forward = paths["always forward"]
+        assert forward.get_zorder() > max(p.get_zorder() for n, p in paths.items() if n != "always forward")
+        assert forward.get_linewidth() < paths["NIRL"].get_linewidth()  # NIRL's wider line shows beside it
+        assert forward.get_color() != paths["NIRL"].get_color()
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert any(
+            label.startswith("always forward: collided, ") and label.endswith(" m") for label in labels
+        )
 
 
 def _fake_main_job(tmp_path):

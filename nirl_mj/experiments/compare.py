@@ -244,10 +244,10 @@ def csv_table(summary: dict) -> str:
 
 def bar_chart(path: Path, summary: dict, title: str) -> Path:
     """Average success per method with its 95 % interval and best-worst range, the paper's next to it."""
-    from nirl_mj.inspect.figures import plt
+    from nirl_mj.inspect.canvas import subplots
 
     names = list(summary["methods"])
-    fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(names) + 1.5), 3.8), dpi=110)
+    fig, ax = subplots(figsize=(max(5.0, 1.1 * len(names) + 1.5), 3.8), dpi=110)
     width, labels = 0.38, {"this work": True, "paper (Table I)": True, "best, worst run": True}
 
     def label(text: str) -> str | None:
@@ -279,7 +279,6 @@ def bar_chart(path: Path, summary: dict, title: str) -> Path:
         ax.legend(fontsize=8, loc="upper center", ncol=3)
     fig.tight_layout()
     write_figure(path, fig)
-    plt.close(fig)
     return path
 
 

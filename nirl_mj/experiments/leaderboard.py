@@ -156,13 +156,13 @@ def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[
 
 def bar_plot(path: Path, summary: list[dict]) -> Path:
     """A panel per point: each method's average success with its 95 % interval, best on top."""
-    from nirl_mj.inspect.figures import plt
+    from nirl_mj.inspect.canvas import subplots
 
     groups = list(dict.fromkeys((p["axis"], p["value"]) for p in summary))
     columns = min(3, len(groups))
     rows_ = -(-len(groups) // columns)
     height = max(len([p for p in summary if (p["axis"], p["value"]) == g]) for g in groups)
-    fig, axes = plt.subplots(rows_, columns, figsize=(4.2 * columns, 0.35 * height * rows_ + 1.2), dpi=110,
+    fig, axes = subplots(rows_, columns, figsize=(4.2 * columns, 0.35 * height * rows_ + 1.2), dpi=110,
                              squeeze=False)  # fmt: skip
     for k, (axis, value) in enumerate(groups):
         ax = axes[k // columns][k % columns]
@@ -183,7 +183,6 @@ def bar_plot(path: Path, summary: list[dict]) -> Path:
         axes[k // columns][k % columns].axis("off")
     fig.tight_layout()
     write_figure(path, fig)
-    plt.close(fig)
     return path
 
 

@@ -318,9 +318,11 @@ def _paired_table(summary: dict, experiment: Experiment, axis: Axis) -> str:
 def curve_plot(path: Path, summary: dict, experiment: Experiment, axis: Axis) -> Path:
     """Success (%) against the axis's values: a curve per method with its 95 % interval band; a method
     that does not depend on a training axis is a dashed horizontal line with its band."""
-    from nirl_mj.inspect.figures import plt
+    import matplotlib
 
-    fig, ax = plt.subplots(figsize=(6.8, 4.2), dpi=110)
+    from nirl_mj.inspect.canvas import subplots
+
+    fig, ax = subplots(figsize=(6.8, 4.2), dpi=110)
     names = [value_name(v) for v in axis.values]
     x = list(range(len(names)))
     drawn = []  # colours go to the methods with a result, so that no two drawn ones share one
@@ -331,9 +333,9 @@ def curve_plot(path: Path, summary: dict, experiment: Experiment, axis: Axis) ->
         done = [(i, found[n]) for i, n in enumerate(names) if found[n].get("runs")]
         if done:
             drawn.append((method, done))
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     if len(drawn) > len(colours):  # more rows than the default 10 colours: tab20, its dark shades first
-        pairs = plt.get_cmap("tab20").colors
+        pairs = matplotlib.colormaps["tab20"].colors
         colours = [*pairs[::2], *pairs[1::2]]
     for k, (method, done) in enumerate(drawn):
         colour = colours[k % len(colours)]
@@ -355,7 +357,6 @@ def curve_plot(path: Path, summary: dict, experiment: Experiment, axis: Axis) ->
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     write_figure(path, fig)
-    plt.close(fig)
     return path
 
 

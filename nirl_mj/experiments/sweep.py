@@ -169,10 +169,12 @@ def markdown_table(summary: dict, experiment: Experiment) -> str:
 
 def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     """Success (%) against obstacles, a line per speed and method; band: worst to best run (Fig. 6)."""
-    from nirl_mj.inspect.figures import plt
+    import matplotlib
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=110)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    from nirl_mj.inspect.canvas import subplots
+
+    fig, ax = subplots(figsize=(6.4, 4.0), dpi=110)
+    colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     styles = ["-", "--", ":", "-."]
     for k, method in enumerate(experiment.methods):
         for j, v in enumerate(experiment.speeds):
@@ -198,7 +200,6 @@ def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     ax.legend(fontsize=7)
     fig.tight_layout()
     write_figure(path, fig)
-    plt.close(fig)
     return path
 
 

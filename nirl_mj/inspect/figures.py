@@ -18,16 +18,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Polygon
 
-matplotlib.use("Agg")  # headless: files only
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-
-from nirl_mj.data.atomic import write_figure  # noqa: E402
-from nirl_mj.data.trajectory import Trajectory, path_length  # noqa: E402
-from nirl_mj.inspect.recording import layout_of  # noqa: E402
+from nirl_mj.data.atomic import write_figure
+from nirl_mj.data.trajectory import Trajectory, path_length
+from nirl_mj.inspect.canvas import subplots
+from nirl_mj.inspect.recording import layout_of
 
 NIRL_PAPER = "Xia & El Kamel, *Neural Inverse Reinforcement Learning*, Robotics and Autonomous Systems, 2016"
 """The paper this project makes real ("the NIRL paper" in reports), as README.md cites it."""
@@ -82,7 +80,7 @@ def _line_figure(
 ):
     """One training curve per series (iterations with a value only; a series without any is left
     out), and the selected iteration as a dashed vertical line labelled :data:`SELECTED_LABEL`."""
-    fig, ax = plt.subplots(figsize=(6.4, 3.4), dpi=110)
+    fig, ax = subplots(figsize=(6.4, 3.4), dpi=110)
     for label, values in series.items():
         x = [i for i, v in enumerate(values) if v is not None and v == v]  # v == v: not NaN
         if x:
@@ -101,8 +99,8 @@ def _line_figure(
 
 
 def training_figures(m: Sequence[dict], selected: int | None = None) -> dict:
-    """The training figures of a run's metrics rows ``m`` by file name (open matplotlib figures:
-    close them), each marking the ``selected`` iteration (None: no mark)."""
+    """The training figures of a run's metrics rows ``m`` by file name (matplotlib figures on their
+    own canvases, :mod:`nirl_mj.inspect.canvas`), each marking the ``selected`` iteration (None: no mark)."""
     col = {k: [row.get(k) for row in m] for k in m[0]} if m else {}
     plots = {
         "margin.png": (
@@ -143,7 +141,6 @@ def training_plots(m: Sequence[dict], out_dir: str | Path, selected: int | None 
     files = []
     for name, fig in training_figures(m, selected).items():
         write_figure(out / name, fig)
-        plt.close(fig)
         files.append(out / name)
     return files
 
@@ -151,25 +148,26 @@ def training_plots(m: Sequence[dict], out_dir: str | Path, selected: int | None 
 def _draw_layout(ax, layout) -> None:
     for o in layout.obstacles:
         if o.shape == "cylinder":
-            ax.add_patch(plt.Circle((o.x, o.y), o.size[0], color="0.7", zorder=1))
+            ax.add_patch(Circle((o.x, o.y), o.size[0], color="0.7", zorder=1))
         else:
             hx, hy = o.size
             corners = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
             c, s = np.cos(o.yaw), np.sin(o.yaw)
             pts = corners @ np.array([[c, s], [-s, c]]) + [o.x, o.y]
-            ax.add_patch(plt.Polygon(pts, color="0.45" if o.is_wall else "0.7", zorder=1))
+            ax.add_patch(Polygon(pts, color="0.45" if o.is_wall else "0.7", zorder=1))
 
 
 def paths_figure(runs: dict[str, Sequence[Trajectory]], arenas: int = 3):
     """Top-down view (metres) of the first ``arenas`` test arenas with each policy's path (the NIRL
-    paper's Fig. 5; an open matplotlib figure: close it). Each policy has its own colour and style;
-    the first is drawn widest and lowest, the next ones narrower above it, so that a path that
+    paper's Fig. 5; a matplotlib figure on its own canvas, :mod:`nirl_mj.inspect.canvas`). Each
+    policy has its own colour and style; the first is drawn widest and lowest, the next ones
+    narrower above it, so that a path that
     runs along another (always forward's, which starts as every other does) stays visible. A
     marker at a path's end says how it ended (:data:`OUTCOME_TEXT`); each panel's legend gives
     every path's outcome and length, the figure's the start, target and end markers."""
     names = list(runs)
     arenas = max(1, min([arenas, *(len(v) for v in runs.values())]))
-    fig, axes = plt.subplots(1, arenas, figsize=(4.6 * arenas, 5.4), dpi=110, squeeze=False)
+    fig, axes = subplots(1, arenas, figsize=(4.6 * arenas, 5.4), dpi=110, squeeze=False)
     for k, ax in enumerate(axes[0]):
         layout = layout_of(runs[names[0]][k])
         _draw_layout(ax, layout)
@@ -207,7 +205,6 @@ def paths_plot(path: str | Path, runs: dict[str, Sequence[Trajectory]], arenas: 
     """Writes :func:`paths_figure` to ``path`` (PNG)."""
     fig = paths_figure(runs, arenas)
     write_figure(path, fig)
-    plt.close(fig)
     return Path(path)
 
 

@@ -137,16 +137,13 @@ def colourise(values: np.ndarray, low: float, high: float, scale: int = 4) -> np
 def grid_figure(grid: PhiGrid, rewards: np.ndarray, title: str = "r_theta(s, a)") -> np.ndarray:
     """One image (H, W, 3) uint8 of all maps: a row per target bearing, a column per action,
     one shared colour scale with its bar; drawn with matplotlib."""
-    import matplotlib
-
-    matplotlib.use("Agg")  # headless: files and arrays only
-    import matplotlib.pyplot as plt
+    from nirl_mj.inspect.canvas import subplots
 
     k = rewards.shape[0]
     finite = rewards[np.isfinite(rewards)]
     low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
     w, h = grid.layout.size
-    fig, axes = plt.subplots(k, features.N_ACTIONS, figsize=(1.6 * features.N_ACTIONS + 1.2, 1.6 * k + 0.5),
+    fig, axes = subplots(k, features.N_ACTIONS, figsize=(1.6 * features.N_ACTIONS + 1.2, 1.6 * k + 0.5),
                              dpi=80, squeeze=False)  # fmt: skip
     image = None
     for r in range(k):
@@ -169,5 +166,4 @@ def grid_figure(grid: PhiGrid, rewards: np.ndarray, title: str = "r_theta(s, a)"
         fig.colorbar(image, cax=fig.add_axes((0.92, 0.1, 0.015, 0.75)))
     fig.canvas.draw()
     rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
     return rgb

@@ -119,14 +119,12 @@ def legend_image(columns: Sequence[Sequence[LegendSection]]) -> np.ndarray:
     Swatches are drawn without antialiasing, so each colour appears in the image exactly (the
     tests look for it). Each column is as wide as its longest text, the image as tall as its
     longest column: shown at its own size it needs no scaling."""
-    import matplotlib
-
-    matplotlib.use("Agg")  # headless: files and arrays only
-    import matplotlib.pyplot as plt
     from matplotlib.font_manager import FontProperties
     from matplotlib.patches import Circle, Rectangle
 
-    fig = plt.figure(dpi=100)
+    from nirl_mj.inspect.canvas import figure
+
+    fig = figure(dpi=100)
     renderer = fig.canvas.get_renderer()
     regular, bold = FontProperties(size=_LEGEND_FONT), FontProperties(size=_LEGEND_FONT, weight="bold")
 
@@ -159,7 +157,6 @@ def legend_image(columns: Sequence[Sequence[LegendSection]]) -> np.ndarray:
         x += column_width + _GAP
     fig.canvas.draw()
     rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
     return rgb
 
 
@@ -195,11 +192,9 @@ def training_figure(rows: Sequence[dict], title: str = "training", selected: int
     with its title and, above the curves, a legend whose swatches have the curves' exact colours;
     the ``selected`` iteration (the policy the run reports) as a dashed grey line on every plot,
     named in the title."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
+
+    from nirl_mj.inspect.canvas import subplots
 
     plots = []
     for plot in TRAINING_PLOTS:
@@ -213,7 +208,7 @@ def training_figure(rows: Sequence[dict], title: str = "training", selected: int
             plots.append((plot.title, series))
     columns = min(4, max(len(plots), 1))
     lines = -(-max(len(plots), 1) // columns)
-    fig, axes = plt.subplots(lines, columns, figsize=(15.6, 3.6 * lines), dpi=100, squeeze=False)
+    fig, axes = subplots(lines, columns, figsize=(15.6, 3.6 * lines), dpi=100, squeeze=False)
     # Fixed margins, room above each plot for its title and two rows of legend (matplotlib's
     # constrained layout would cost a second).
     fig.subplots_adjust(left=0.04, right=0.99, bottom=0.2 / lines, top=1 - 0.36 / lines, wspace=0.2,
@@ -247,5 +242,4 @@ def training_figure(rows: Sequence[dict], title: str = "training", selected: int
     fig.suptitle(title, fontsize=11)
     fig.canvas.draw()
     rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
     return rgb
