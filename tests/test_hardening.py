@@ -216,3 +216,50 @@ def test_eval_refuses_a_rerun_it_cannot_write_before_cloning_the_demonstrations(
     fresh = ["eval", "--policy", "bc", "--demos", str(datasets[0]), "--rerun", str(tmp_path / "new.rrd"),
              "--set", 'control.actions="continuous"', "--tests", "1"]  # fmt: skip
     refused(capsys, fresh, "--rerun: task", "continuous actions")
+
+
+def test_a_rerun_recording_never_takes_the_place_of_a_file_the_command_keeps(tmp_path, capsys, datasets):
+    """``--rerun`` names a .rrd file other than the command's own outputs, checked before any work:
+    with --overwrite the recording had replaced the dataset just written, or a run's policy."""
+    data = tmp_path / "d.npz"
+    data.write_bytes(b"a user's dataset")
+    demos = ["demos", "--episodes", "1", "--workers", "1", "--quiet", *TINY, "--overwrite"]
+    refused(capsys, [*demos, "--out", str(data), "--rerun", str(data)], "ends in .rrd")
+    refused(capsys, [*demos, "--out", str(tmp_path / "d.rrd"), "--rerun", str(tmp_path / "d.rrd")],
+            "also a file this command writes")  # fmt: skip
+    assert data.read_bytes() == b"a user's dataset" and not (tmp_path / "d.rrd").exists()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "policy.npz").write_bytes(b"a trained policy")
+    refused(
+        capsys, ["eval", "--run", str(run), "--rerun", str(run / "policy.npz"), "--overwrite"], "ends in .rrd"
+    )
+    assert (run / "policy.npz").read_bytes() == b"a trained policy"
+    refused(capsys, ["run", "--out", str(run), "--rerun", str(run / "run.rrd"), "--resume"],
+            "also a file this command writes")  # fmt: skip
+
+
+def test_an_output_or_a_resume_of_the_wrong_kind_is_refused_by_name(tmp_path, capsys, datasets, monkeypatch):
+    """A file given as a run directory, a resume with nothing to resume or of another command's run, a
+    task file given as an experiment, a negative --train-seed: one line each, saying what to give."""
+    refused(capsys, ["train", "--demos", str(datasets[0]), "--out", str(datasets[0])], "is a file, not a run")
+    refused(capsys, ["run", "--out", str(datasets[0]), "--workers", "1"], "is a file, not a directory")
+    refused(
+        capsys, ["run", "--out", str(tmp_path / "none"), "--resume", "--workers", "1"], "nothing to resume"
+    )
+    assert not (tmp_path / "none").exists()
+    nirl = tmp_path / "nirl"
+    nirl.mkdir()
+    from nirl_mj.data.rundir import RECORD_KEYS
+
+    (nirl / "run.json").write_text(json.dumps(dict.fromkeys(RECORD_KEYS, 0)))  # a record without kind "rl"
+    refused(capsys, ["rl", "--out", str(nirl), "--resume"], "not of `nirl-mj rl`", "nirl-mj train")
+    refused(capsys, ["compare", "--task", "navigate", "--report"], "is a task file, not an experiment")
+    with pytest.raises(SystemExit):
+        main(["eval", "--policy", "bc", "--demos", str(datasets[0]), "--train-seed", "-5"])
+    assert "--train-seed: " in capsys.readouterr().err
+    # the shipped experiment files by the path the docs give, from any working directory
+    monkeypatch.chdir(tmp_path)
+    from nirl_mj.experiments.definition import load_experiment
+
+    assert load_experiment("tasks/table1.toml").name == "table1"

@@ -77,6 +77,23 @@ def _check_output(path: str | Path, overwrite: bool) -> Path:
     return path
 
 
+def _check_rerun(args: argparse.Namespace, *kept: str | Path) -> Path | None:
+    """``--rerun``'s file checked before any work (None without it): a name ending in ``.rrd`` (what
+    Rerun's viewer opens; never a dataset, a run's policy or its eval.json) that is none of ``kept``,
+    the files the command itself writes, and :func:`_check_output`'s checks."""
+    if not getattr(args, "rerun", None):
+        return None
+    path = Path(args.rerun)
+    if path.suffix != ".rrd":
+        raise ValueError(f"--rerun {path}: a Rerun recording's name ends in .rrd (for example "
+                         f"{path.with_suffix('.rrd').name}): no other file is taken for it")  # fmt: skip
+    if any(path.resolve() == Path(k).resolve() for k in kept):
+        raise ValueError(
+            f"--rerun {path} is also a file this command writes: give the recording another name"
+        )
+    return _check_output(path, args.overwrite)
+
+
 def _task(args: argparse.Namespace):
     return apply_overrides(load_task(args.task or "navigate"), args.set)
 
@@ -91,8 +108,7 @@ def _no_rerun_of_continuous(args: argparse.Namespace, spec) -> None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     spec = _task(args)
-    if args.rerun:
-        _check_output(args.rerun, args.overwrite)
+    _check_rerun(args, Path(args.out) / "run.rrd")
     iterations = args.episodes or LearnerConfig.preset(args.variant).loop.episodes
     bar = _bar(args, 3 * iterations, "iteration", desc="NIRL and 2 controls")
 
@@ -150,8 +166,7 @@ def cmd_demos(args: argparse.Namespace) -> int:
 
 def _demos(args: argparse.Namespace) -> int:
     out = _check_output(args.out, args.overwrite)
-    if args.rerun:
-        _check_output(args.rerun, args.overwrite)
+    _check_rerun(args, out)
     spec = _task(args)
     _no_rerun_of_continuous(args, spec)
     expert = ExpertConfig(args.expert, args.base, args.slip, args.random_action, args.seed)
@@ -273,9 +288,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         spec, demos, seed = _task(args), args.demos, args.seed or 0
         backend = _backend(args)
     done = RunDir(args.out).iterations_done() if args.resume else 0
-    recording = (
-        Recording(_check_output(args.rerun, args.overwrite), overwrite=args.overwrite) if args.rerun else None
-    )
+    recording = Recording(_check_rerun(args), overwrite=args.overwrite) if args.rerun else None
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
 
         def progress(m) -> None:
@@ -310,6 +323,9 @@ def cmd_rl(args: argparse.Namespace) -> int:
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
     out = RunDir(args.out)
     spec = _task(args)
+    if args.resume and out.is_run and out.read_record().get("kind") != "rl":
+        raise RunError(f"{args.out} holds a run of `nirl-mj train`, not of `nirl-mj rl`: resume it with "
+                       f"`nirl-mj train --out {args.out} --resume`")  # fmt: skip
     if args.resume:
         spec = specs.from_dict(out.read_record()["task"], str(out.file(RUN_FILE)))
         if args.task or args.set:
@@ -356,7 +372,7 @@ def _subject(args: argparse.Namespace) -> Subject:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.rerun:  # before the subject: `--policy bc` trains one
-        _check_output(args.rerun, args.overwrite)
+        _check_rerun(args)
         if not args.run:  # a run's task is its record's, known once the subject is
             _no_rerun_of_continuous(args, _task(args))
     subject = _subject(args)

@@ -232,7 +232,7 @@ def build_parser() -> argparse.ArgumentParser:
     who.add_argument("--run", help="run directory")
     who.add_argument("--policy", choices=REFERENCES, help="a reference policy instead of a run")
     p.add_argument("--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)")
-    p.add_argument("--train-seed", type=int, default=0, help="with --policy bc: its training seed")
+    p.add_argument("--train-seed", type=_seed, default=0, help="with --policy bc: its training seed")
     p.add_argument("--tests", type=_positive_int, default=100)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas")
     p.add_argument("--which", default="selected", metavar="selected|last|N",

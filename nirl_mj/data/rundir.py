@@ -59,6 +59,8 @@ class RunDir:
     path: Path
 
     def __init__(self, path: str | os.PathLike) -> None:
+        if Path(path).exists() and not Path(path).is_dir():
+            raise RunError(f"{path} is a file, not a run directory: give a directory (a new one to train in)")
         object.__setattr__(self, "path", Path(path))
 
     def __str__(self) -> str:

@@ -349,7 +349,7 @@ class Experiment:
 def load_experiment(path: str | Path, quick: bool = False, kind: str | None = None) -> Experiment:
     """Reads and validates an experiment file (a path, or a name under ``tasks/``); with ``kind``,
     refuses an experiment of another kind (naming the command that runs it)."""
-    given, path = path, Path(path)
+    given, path = path, specs.shipped_path(path)
     if path.suffix != ".toml" and not path.is_file():
         path = specs.TASKS_DIR / f"{path}.toml"
     data = specs.read_toml(path, "experiment file", ExperimentError)
@@ -366,6 +366,10 @@ def from_dict(
 ) -> Experiment:
     """Validates a plain dict (as read from TOML); relative task paths are taken from ``base``."""
     kind = data.get("kind")
+    if kind is None and {"arena", "robot", "sensing", "control"} & set(data):
+        kinds = " or ".join(map(repr, KINDS))
+        raise ExperimentError(f"{source} is a task file, not an experiment: an experiment names it with "
+                              f"task = ... and says kind = {kinds} (docs/EXPERIMENTS.md)")  # fmt: skip
     if kind not in KINDS:
         raise ExperimentError(f"{source}: kind = {kind!r}: accepted: {', '.join(KINDS)}")
     _known(data, KEYS[kind], source, f"(kind {kind})")

@@ -127,6 +127,13 @@ def main_job(
 
     ``on_metrics`` receives every training run's metrics rows (dicts) as iterations finish."""
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(
+            f"{out} is a file, not a directory: give the main job a directory of its own"
+        )
+    if resume and not (out.is_dir() and any(out.iterdir())):
+        raise FileNotFoundError(f"nothing to resume in {out}: the main job had not started there; run the "
+                                "same command without --resume")  # fmt: skip
     if out.exists() and any(out.iterdir()) and not resume:
         raise FileExistsError(
             f"{out} exists and is not empty; pass --resume to continue it, or choose another --out"

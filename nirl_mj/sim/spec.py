@@ -389,10 +389,7 @@ def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
     anywhere), or a spec object."""
     if isinstance(task, TaskSpec):
         return task
-    path = Path(task)
-    if path.suffix == ".toml" and not path.is_absolute() and not path.is_file():
-        shipped = TASKS_DIR.parent / path  # "tasks/dynamic.toml" works from any directory too
-        path = shipped if shipped.is_file() else path
+    path = shipped_path(task)
     if path.suffix != ".toml":
         named = TASKS_DIR / f"{task}.toml"
         if not named.is_file():
@@ -406,8 +403,20 @@ def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
     return from_dict(data, str(path))
 
 
+def shipped_path(path: str | Path) -> Path:
+    """``path``, or for a relative ``.toml`` path not found from the working directory the checkout's
+    file of that path: ``"tasks/dynamic.toml"`` works from any directory, as the docs write it."""
+    path = Path(path)
+    if path.suffix == ".toml" and not path.is_absolute() and not path.exists():
+        shipped = TASKS_DIR.parent / path
+        path = shipped if shipped.is_file() else path
+    return path
+
+
 def read_toml(path: Path, what: str, error: type[Exception]) -> dict[str, Any]:
     """The TOML file at ``path`` as a dict; ``error`` names the file if it is missing or invalid."""
+    if path.is_dir():
+        raise error(f"{what} {path} is a directory; give a .toml file")
     if not path.is_file():
         raise error(f"{what} not found: {path}")
     try:
