@@ -125,6 +125,8 @@ def test_bad_requests_are_refused(tmp_path, capsys):
         "does not exist": ["--out", str(tmp_path / "missing" / "a.mp4")],
         "must be even": ["--out", str(tmp_path / "a.mp4"), "--width", "161"],
         "nothing to write": [],
+        "a.png: --out writes .mp4 (for example a.mp4)": ["--out", str(tmp_path / "a.png")],
+        "s.mp4: --montage writes .png": ["--montage", str(tmp_path / "s.mp4")],
     }
     for message, extra in cases.items():
         assert main([*base, *extra]) == 2, message

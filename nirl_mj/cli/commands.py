@@ -457,6 +457,12 @@ def cmd_render(args: argparse.Namespace) -> int:
         )
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise video.RenderError("--out, --montage and --paths name the same file; give each its own")
+    written = {"--out": (args.out, ".mp4"), "--montage": (args.montage, ".png"),
+               "--paths": (args.paths, ".png")}  # fmt: skip
+    for flag, (path, suffix) in written.items():
+        if path and Path(path).suffix.lower() != suffix:  # what is written: an MP4 video, PNG images
+            raise video.RenderError(f"{flag} {path}: {flag} writes {suffix} (for example "
+                                    f"{Path(path).with_suffix(suffix).name})")  # fmt: skip
     for path in outputs:
         _check_output(path, args.overwrite)
     with contextlib.ExitStack() as held:
