@@ -170,12 +170,13 @@ def build_parser() -> argparse.ArgumentParser:
                  "overwrite", "rerun=the demonstrations")  # fmt: skip
     p.add_argument("--episodes", type=_positive_int, default=30)
     p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
-    p.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default="sensor",
-                   help="the expert a noisy expert perturbs")  # fmt: skip
-    p.add_argument("--slip", type=_probability, default=0.1, help="noisy: probability an action slips")
-    p.add_argument(
-        "--random-action", type=_probability, default=0.05, help="noisy: probability of a random action"
-    )
+    # None when not given: they configure --expert noisy only, and are refused with another expert
+    p.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default=None,
+                   help="noisy: the expert it perturbs (default: sensor)")  # fmt: skip
+    p.add_argument("--slip", type=_probability, default=None,
+                   help="noisy: probability an action slips (default: 0.1)")  # fmt: skip
+    p.add_argument("--random-action", type=_probability, default=None,
+                   help="noisy: probability of a random action (default: 0.05)")  # fmt: skip
     p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--out", required=True, help="dataset path (.npz)")
     p.add_argument("--workers", type=_workers, default=None, help="processes (default: all cores)")
