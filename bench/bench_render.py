@@ -105,7 +105,7 @@ def train_once(demos: Path, out: Path, episodes: int, record: bool) -> dict:
     if record:
         from nirl_mj.inspect.recording import Recording
 
-        timed = _TimedRecording(Recording(out.with_suffix(".rrd")))
+        timed = _TimedRecording(Recording(out.with_suffix(".rrd"), overwrite=True))
     t0 = time.perf_counter()
     train(out, spec, demos, config, 0, False, (lambda m: timed.training([vars(m)])) if timed else None)
     t1 = time.perf_counter()

@@ -175,7 +175,7 @@ def test_a_recording_without_overwrite_never_replaces_a_file_that_appeared_meanw
             recording.episode("demos/000", trajectory)
             path.write_bytes(b"someone else's")
     assert path.read_bytes() == b"someone else's" and sorted(tmp_path.iterdir()) == [path]
-    with Recording(path) as recording:  # overwrite (the default of the library call) replaces it
+    with Recording(path, overwrite=True) as recording:  # asked to, it replaces it
         recording.episode("demos/000", trajectory)
     assert path.read_bytes() != b"someone else's"
 

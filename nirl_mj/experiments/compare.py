@@ -351,8 +351,10 @@ def write_strip(out: Path, experiment: Experiment, jobs: dict, log: Callable[[st
         return None
     try:
         policy = policy_of(job)  # a finished run: loads it
-        path = snapshot_strip(experiment.test_task, policy, job.test_seeds[0], out / "strip.png",
-                              strip.snapshots, strip.camera, strip.width, strip.height)  # fmt: skip
+        # the experiment's own figure, drawn again on every report
+        frame = (strip.snapshots, strip.camera, strip.width, strip.height)
+        path = snapshot_strip(experiment.test_task, policy, job.test_seeds[0], out / "strip.png", *frame,
+                              overwrite=True)  # fmt: skip
     except (RenderError, OSError, RuntimeError, ValueError) as exc:
         log(f"strip: not written: {exc}")
         return None

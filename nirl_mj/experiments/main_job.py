@@ -227,6 +227,7 @@ def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: st
         focus=focus,
         reward_of=ROWS["NIRL"],
         selected=nirl.read_record().get("selected_iteration"),
+        overwrite=True,  # the job's own recording, made again from its files
     )
 
 

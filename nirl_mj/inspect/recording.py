@@ -497,7 +497,7 @@ class Recording(AtomicFile):
     when the recording closes, is refused (``FileExistsError``)."""
 
     def __init__(
-        self, path: str | os.PathLike, focus: str | None = None, method: str = "NIRL", overwrite: bool = True
+        self, path: str | os.PathLike, focus: str | None = None, method: str = "NIRL", overwrite: bool = False
     ) -> None:
         super().__init__(path, overwrite=overwrite, refusal=_EXISTS)
         self.focus = focus  # the episode whose tabs the layout opens on (None: the first)
@@ -627,7 +627,7 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
     return recording.close()
 
 
-def copy_recording(source: str | os.PathLike, target: str | os.PathLike, overwrite: bool = True) -> Path:
+def copy_recording(source: str | os.PathLike, target: str | os.PathLike, overwrite: bool = False) -> Path:
     """Copies the recording ``source`` to ``target`` atomically (a temporary file, then a rename)."""
     import shutil
 
@@ -640,7 +640,7 @@ def record_demonstrations(
     path: str | os.PathLike,
     trajectories: Sequence[Trajectory],
     reward: RewardModel | None = None,
-    overwrite: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Writes a ``.rrd`` with every demonstration (``demos/<i>``), atomically."""
     return record_run(path, trajectories, (), {}, reward=reward, overwrite=overwrite)
@@ -652,7 +652,7 @@ def record_evaluation(
     trajectories: Sequence[Trajectory],
     reward: RewardModel | None = None,
     map_arena: tuple[str | TaskSpec, int] | None = None,
-    overwrite: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Writes a ``.rrd`` with every evaluation episode (``eval/<slug(name)>/<i>``), r_theta along
     each when ``reward`` (``name``'s learned reward) is given, and the reward map of ``map_arena``
@@ -681,7 +681,7 @@ def record_run(
     focus: str | None = None,
     reward_of: str | None = None,
     selected: int | None = None,
-    overwrite: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Writes a run's recording, atomically: the demonstrations (``demos/<i>``), the training
     scalars, the first ``max_paths`` test episodes of each policy (``eval/<policy slug>/<i>``; the

@@ -466,7 +466,7 @@ def snapshot_strip(
     camera: str = "top",
     width: int = 480,
     height: int = 360,
-    overwrite: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Writes a PNG strip of ``snapshots`` frames of one episode (the paper's Fig. 8).
 
@@ -524,7 +524,7 @@ def paths_montage(
     width: int = 480,
     height: int = 360,
     columns: int | None = None,
-    overwrite: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Writes a PNG of ``policy``'s whole path in each arena of ``seeds`` (the paper's Fig. 5):
     the final state from ``camera`` with the path coloured by outcome (green target, red
