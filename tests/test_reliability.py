@@ -532,3 +532,24 @@ def test_any_damage_to_an_experiment_s_files_is_refused_or_recomputed_never_a_tr
         assert code in (0, 2) and "Traceback" not in err, err
         if code == 2:
             assert len(err.strip().splitlines()) == 1 and tree_digests(out) == before, err
+
+
+def test_an_output_whose_lock_cannot_be_written_is_refused_naming_where_the_lock_goes(tmp_path, monkeypatch):
+    """The lock goes beside the output; where that directory is not writable the refusal says so
+    (not a bare errno), and nothing is left behind. (Root writes anywhere, so the refusal of the
+    operating system is simulated.)"""
+    from nirl_mj.data import lock as lock_module
+
+    real_open = os.open
+
+    def refusing_open(path, *args, **kwargs):
+        if str(path).endswith(".lock"):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(lock_module.os, "open", refusing_open)
+    with pytest.raises(
+        PermissionError, match=r"its lock .*\.out\.lock goes beside it, and .* is not writable"
+    ):
+        lock_module.DirectoryLock(tmp_path / "out").acquire()
+    assert list(tmp_path.iterdir()) == []

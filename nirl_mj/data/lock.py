@@ -34,7 +34,15 @@ class DirectoryLock:
         self._fd: int | None = None
 
     def acquire(self) -> DirectoryLock:
-        self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+            return self._acquire()
+        except PermissionError:
+            raise PermissionError(f"cannot write {self.path}: its lock {self.lock_file} goes beside it, and "
+                                  f"{self.lock_file.parent} is not writable; choose an output there is "
+                                  "room to write beside") from None  # fmt: skip
+
+    def _acquire(self) -> DirectoryLock:
         while True:
             fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
             try:

@@ -482,9 +482,11 @@ def train_rl(
 
     progress = _Progress(checkpoint, checkpoint_every, on_steps, record.get("recent_outcomes", []))
     callbacks.append(progress)
-    model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
-    progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
-    venv.close()
+    try:
+        model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
+        progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
+    finally:
+        venv.close()
     return record
 
 
