@@ -437,14 +437,16 @@ def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, ex
 
     if executor == "ray":
         pytest.importorskip("ray", reason="Ray is optional: pip install 'nirl-mj[ray]' to test it")
-    # a short root of its own (Ray's socket paths must fit 107 bytes), to see what a run leaves there
+    # a short temporary root of its own (Ray's socket paths must fit 107 bytes), Python's and Ray's
+    # alike (Ray's default session folder is TMPDIR/ray on Linux), to see what a run leaves there
     root = Path(tempfile.mkdtemp(prefix="r", dir="/tmp"))
     monkeypatch.setattr(tempfile, "tempdir", str(root))
+    monkeypatch.setenv("TMPDIR", str(root))
     monkeypatch.delenv("RAY_TMPDIR", raising=False)
     spec, _, reference = serial_sweep
     try:
         assert main(sweep_args(spec, tmp_path / executor, executor)) == 0
-        assert not list(root.glob("nirl-ray-*"))  # the local Ray cluster's session folder went with it
+        assert list(root.iterdir()) == []  # a local Ray cluster's session folder went with it
     finally:
         shutil.rmtree(root, ignore_errors=True)
     assert cell_results(tmp_path / executor) == reference

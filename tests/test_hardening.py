@@ -256,7 +256,7 @@ def test_an_output_or_a_resume_of_the_wrong_kind_is_refused_by_name(tmp_path, ca
     refused(capsys, ["rl", "--out", str(nirl), "--resume"], "not of `nirl-mj rl`", "nirl-mj train")
     refused(capsys, ["compare", "--task", "navigate", "--report"], "is a task file, not an experiment")
     refused(capsys, ["demos", "--expert", "sensor", "--slip", "0.5", "--out", str(tmp_path / "n.npz")],
-            "--slip configure --expert noisy")  # fmt: skip
+            "--slip: only for --expert noisy")  # fmt: skip
     with pytest.raises(SystemExit):
         main(["eval", "--policy", "bc", "--demos", str(datasets[0]), "--train-seed", "-5"])
     assert "--train-seed: " in capsys.readouterr().err

@@ -119,9 +119,12 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
     write_text(out / "families.md", "\n".join(lines) + "\n")
     write_text(out / "families.csv", "\n".join(rows) + "\n")
 
-    from nirl_mj.inspect.figures import plt
+    import matplotlib
 
-    fig, ax = plt.subplots(figsize=(10, 4.2), dpi=110)
+    from nirl_mj.inspect.canvas import subplots
+
+    fig, ax = subplots(figsize=(10, 4.2), dpi=110)
+    colours = matplotlib.colormaps["tab20"]
     width = 0.8 / len(methods)
     x = np.arange(len(FAMILIES))
     for k, m in enumerate(methods):
@@ -130,7 +133,7 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
         low = [mean[i] - (min(v) if v else 0.0) for i, v in enumerate(values)]
         high = [(max(v) if v else 0.0) - mean[i] for i, v in enumerate(values)]
         ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, label=m, yerr=[low, high],
-               color=plt.get_cmap("tab20")(k % 20), error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
+               color=colours(k % 20), error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
     ax.set_xticks(x, FAMILIES)
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 105)
@@ -141,7 +144,6 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     write_figure(out / "families.png", fig)
-    plt.close(fig)
 
 
 def main() -> None:

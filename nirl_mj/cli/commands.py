@@ -84,7 +84,7 @@ def _check_rerun(args: argparse.Namespace, *kept: str | Path) -> Path | None:
     if not getattr(args, "rerun", None):
         return None
     path = Path(args.rerun)
-    if path.suffix != ".rrd":
+    if path.suffix.lower() != ".rrd":
         raise ValueError(f"--rerun {path}: a Rerun recording's name ends in .rrd (for example "
                          f"{path.with_suffix('.rrd').name}): no other file is taken for it")  # fmt: skip
     if any(path.resolve() == Path(k).resolve() for k in kept):
@@ -171,7 +171,7 @@ def _demos(args: argparse.Namespace) -> int:
     _no_rerun_of_continuous(args, spec)
     noise = {"--base": args.base, "--slip": args.slip, "--random-action": args.random_action}
     if args.expert != "noisy" and (named := [flag for flag, value in noise.items() if value is not None]):
-        raise ValueError(f"{', '.join(named)} configure --expert noisy; with --expert {args.expert} leave "
+        raise ValueError(f"{', '.join(named)}: only for --expert noisy; with --expert {args.expert} leave "
                          "them out")  # fmt: skip
     given = {"base": args.base, "slip": args.slip, "random": args.random_action}
     expert = ExpertConfig(args.expert, seed=args.seed, **{k: v for k, v in given.items() if v is not None})

@@ -37,10 +37,11 @@ class DirectoryLock:
         try:
             self.lock_file.parent.mkdir(parents=True, exist_ok=True)
             return self._acquire()
-        except PermissionError:
-            raise PermissionError(f"cannot write {self.path}: its lock {self.lock_file} goes beside it, and "
-                                  f"{self.lock_file.parent} is not writable; choose an output there is "
-                                  "room to write beside") from None  # fmt: skip
+        except PermissionError as exc:
+            raise PermissionError(
+                f"cannot write {self.path}: its lock {self.lock_file} (in the output's "
+                f"parent directory) cannot be written: {exc.strerror}"
+            ) from None
 
     def _acquire(self) -> DirectoryLock:
         while True:

@@ -60,7 +60,7 @@ class RunDir:
 
     def __init__(self, path: str | os.PathLike) -> None:
         if Path(path).exists() and not Path(path).is_dir():
-            raise RunError(f"{path} is a file, not a run directory: give a directory (a new one to train in)")
+            raise RunError(f"{path} is a file, not a run directory")
         object.__setattr__(self, "path", Path(path))
 
     def __str__(self) -> str:

@@ -170,7 +170,7 @@ def main_job(
     nirl = RunDir(jobs["NIRL", 0].run_dir)
     demo_trajectories = load_dataset(out / "demos.npz")
     write_report(out, nirl, experiment, results, paths, len(demo_trajectories))
-    record_main_job(out, nirl, out / "run.rrd")
+    record_main_job(out, nirl, out / "run.rrd", overwrite=True)  # the job's own, made again from its files
     return results
 
 
@@ -207,12 +207,15 @@ def report_table(out: str | Path) -> str:
     return results_table(report_rows(*stored_results(out)))
 
 
-def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: str | None = None) -> Path:
+def record_main_job(
+    out: str | Path, nirl: RunDir, target: str | Path, focus: str | None = None, overwrite: bool = False
+) -> Path:
     """Writes the recording of the main job in ``out`` to ``target``: its demonstrations, the training
     scalars and reward of its NIRL run ``nirl``, the first test episodes of every method tested so
     far (``tests/``: all of them once the job has finished) and the reward map in the first test
     arena (the one ``eval/nirl/000`` drove in). ``focus``: the episode the layout opens on
-    (:func:`nirl_mj.inspect.blueprint.default_blueprint`)."""
+    (:func:`nirl_mj.inspect.blueprint.default_blueprint`). ``overwrite`` False: an existing ``target``
+    is refused."""
     out = Path(out)
     files = {ROWS[name]: out / "tests" / f"{name}.npz" for name in ROWS}
     paths = {row: load_dataset(file) for row, file in files.items() if file.is_file()}
@@ -227,7 +230,7 @@ def record_main_job(out: str | Path, nirl: RunDir, target: str | Path, focus: st
         focus=focus,
         reward_of=ROWS["NIRL"],
         selected=nirl.read_record().get("selected_iteration"),
-        overwrite=True,  # the job's own recording, made again from its files
+        overwrite=overwrite,
     )
 
 

@@ -11,7 +11,9 @@ method M and run r is taken only when all of these hold:
   settings or the experiment's ``[config]``, whose effect is in each learner's settings (below);
 - OLD's demonstrations hold the same arrays (drawn per run: the run's own; a run OLD has no
   demonstrations for is left to be computed);
-- M does not train and OLD holds M with the same definition; or M is a trained learner and OLD
+- M is not one of NIRL's loop's learners (a Stable-Baselines3 row, BC, a reference) and OLD holds a
+  method with M's definition but for its name (M's own preferred: the cell is taken under M's
+  name); or M is a trained learner and OLD
   holds a method with the same resolved learner settings that it reads (the algorithm and every
   setting of the loop and of its own reward step: ``LearnerConfig.settings_read``), of M's name
   (preferred) or another, as when a named variant became the default: the cell is taken under M's
@@ -115,11 +117,12 @@ def copy_run(source: Path, target: Path) -> None:
 
 def method_sources(saved: dict, experiment: Experiment) -> dict[str, list[str]]:
     """For each method of ``experiment``, the methods of the saved experiment whose cells are its
-    computation, best first. A method that does not train (a Stable-Baselines3 row, a reference):
-    every saved method with the same definition but its name, its own name first, then the others by
-    name. A trained learner: every saved method with the same resolved learner settings that it reads
-    (the algorithm and the settings of the loop and of its step), its own name first, then the
-    others by name (a renamed variant)."""
+    computation, best first. A method that is not one of the loop's learners (a Stable-Baselines3
+    row, BC, a reference): every saved method with the same definition but for its name (its seed is
+    the run's, its name a label), its own name first, then the others by name. A learner of the loop:
+    every saved method with the same resolved learner settings that it reads (the algorithm and the
+    settings of the loop and of its step), its own name first, then the others by name (a renamed
+    variant)."""
     from nirl_mj.learn.config import LearnerConfig
 
     identity = saved_form(experiment)

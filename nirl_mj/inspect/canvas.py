@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -25,3 +26,9 @@ def subplots(*grid: int, figsize: tuple[float, float] | None = None, dpi: float 
     ``kwargs``: :meth:`matplotlib.figure.Figure.subplots`'s, e.g. ``squeeze``)."""
     fig = figure(figsize=figsize, dpi=dpi)
     return fig, fig.subplots(*grid, **kwargs)
+
+
+def to_rgb(fig: Figure) -> np.ndarray:
+    """``fig`` drawn, as an (H, W, 3) uint8 image (pixels of its Agg canvas)."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()

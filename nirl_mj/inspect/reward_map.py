@@ -137,7 +137,7 @@ def colourise(values: np.ndarray, low: float, high: float, scale: int = 4) -> np
 def grid_figure(grid: PhiGrid, rewards: np.ndarray, title: str = "r_theta(s, a)") -> np.ndarray:
     """One image (H, W, 3) uint8 of all maps: a row per target bearing, a column per action,
     one shared colour scale with its bar; drawn with matplotlib."""
-    from nirl_mj.inspect.canvas import subplots
+    from nirl_mj.inspect.canvas import subplots, to_rgb
 
     k = rewards.shape[0]
     finite = rewards[np.isfinite(rewards)]
@@ -164,6 +164,4 @@ def grid_figure(grid: PhiGrid, rewards: np.ndarray, title: str = "r_theta(s, a)"
     fig.subplots_adjust(left=0.05, right=0.9, bottom=0.02, top=0.9, wspace=0.05, hspace=0.05)
     if image is not None:
         fig.colorbar(image, cax=fig.add_axes((0.92, 0.1, 0.015, 0.75)))
-    fig.canvas.draw()
-    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    return rgb
+    return to_rgb(fig)

@@ -122,7 +122,7 @@ def legend_image(columns: Sequence[Sequence[LegendSection]]) -> np.ndarray:
     from matplotlib.font_manager import FontProperties
     from matplotlib.patches import Circle, Rectangle
 
-    from nirl_mj.inspect.canvas import figure
+    from nirl_mj.inspect.canvas import figure, to_rgb
 
     fig = figure(dpi=100)
     renderer = fig.canvas.get_renderer()
@@ -155,9 +155,7 @@ def legend_image(columns: Sequence[Sequence[LegendSection]]) -> np.ndarray:
                 ax.text(x + _SWATCH, y + _LEGEND_ROW / 2, swatch.text, va="center", fontproperties=regular)
                 y += _LEGEND_ROW
         x += column_width + _GAP
-    fig.canvas.draw()
-    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    return rgb
+    return to_rgb(fig)
 
 
 def _draw_swatch(ax, swatch: Swatch, x: float, y: float, rectangle, circle) -> None:
@@ -194,7 +192,7 @@ def training_figure(rows: Sequence[dict], title: str = "training", selected: int
     named in the title."""
     from matplotlib.patches import Patch
 
-    from nirl_mj.inspect.canvas import subplots
+    from nirl_mj.inspect.canvas import subplots, to_rgb
 
     plots = []
     for plot in TRAINING_PLOTS:
@@ -240,6 +238,4 @@ def training_figure(rows: Sequence[dict], title: str = "training", selected: int
     if selected is not None and selected >= 0:
         title += f" (dashed line: the selected policy, iteration {selected})"
     fig.suptitle(title, fontsize=11)
-    fig.canvas.draw()
-    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    return rgb
+    return to_rgb(fig)
