@@ -45,8 +45,8 @@ obstacles = [3]
 speeds = [1.0, 2.0]
 """
 TABLE1_ROWS = ["NIRL", "NIRL-last", "NIRL-paper", "NIRL-classifier", "AL", "RE", "SCIRL", "AL-traj",
-               "RE-traj", "GAIL", "AIRL", "BC", "BC-paper", "DAgger", "PPO-reward", "DQN-reward",
-               "forward", "rule"]  # fmt: skip
+               "RE-traj", "GAIL", "GAIL-linear-last", "AIRL", "BC", "BC-paper", "DAgger", "PPO-reward",
+               "DQN-reward", "forward", "rule"]  # fmt: skip
 
 
 def write_spec(tmp_path: Path, head: str, name: str = "tiny.toml") -> Path:
@@ -135,7 +135,8 @@ def test_shipped_experiments_load_full_and_quick():
     assert [(m.algo, m.steps, m.selection, m.envs) for m in table1.methods if m.name == "DQN-reward"] == [
         ("dqn", 100_000, "validation_success", 1)]  # fmt: skip
     assert {m.name: m.steps for m in load_experiment("table1", quick=True).methods if m.kind == "rl"} == {
-        "GAIL": 2048, "AIRL": 2048, "PPO-reward": 2048, "DQN-reward": 2048}  # fmt: skip
+        "GAIL": 2048, "GAIL-linear-last": 2048, "AIRL": 2048, "PPO-reward": 2048,
+        "DQN-reward": 2048}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
     assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
     assert quick.methods[2].learner_config(quick.config).loop.variant == "paper"

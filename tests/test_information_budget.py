@@ -29,7 +29,7 @@ from nirl_mj.learn.reward import state_reward_features
 from nirl_mj.learn.terminal import absorbing_values
 
 LEARNERS_FROM_DEMONSTRATIONS = ("NIRL", "NIRL-classifier", "NIRL-paper", "AL", "RE", "SCIRL", "AL-traj",
-                                "RE-traj", "BC", "BC-paper", "GAIL", "AIRL", "AIRL-state",
+                                "RE-traj", "BC", "BC-paper", "GAIL", "GAIL-linear-last", "AIRL", "AIRL-state",
                                 "GAIL-absorbing")  # fmt: skip
 
 

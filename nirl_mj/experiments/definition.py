@@ -197,6 +197,18 @@ BUILTIN_METHODS = {
         envs=RL_ENVS,
         settings={"inputs": "bearing", "act": "greedy"},
     ),
+    # GAIL's last checkpoint (as NIRL-last is NIRL's) with PPO's rate decayed linearly to 0: the higher last
+    # checkpoints on the development domain (tasks/ablations/adversarial_schedule.toml: 78.8 % against
+    # 66.8 at GAIL's constant rate), where GAIL's rule kept the decayed run's early checkpoints
+    "GAIL-linear-last": MethodSpec(
+        "GAIL-linear-last",
+        "rl",
+        algo="gail",
+        steps=RL_STEPS,
+        selection="last",
+        envs=RL_ENVS,
+        settings={"lr_schedule": "linear"},
+    ),
     # the same with an absorbing state (Kostrikov et al. 2019): an episode's end is no longer free
     "GAIL-absorbing": MethodSpec("GAIL-absorbing", "rl", algo="gail-absorbing", steps=50_000),
     "AIRL-absorbing": MethodSpec("AIRL-absorbing", "rl", algo="airl-absorbing", steps=50_000),
