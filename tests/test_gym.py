@@ -230,7 +230,8 @@ def test_continuous_actions_are_a_bounded_twist_through_the_wheel_controller():
     assert recorded.dtype == np.float32 and recorded[:2].tolist() == [[1.0, 0.0], [-1.0, 0.0]]
 
 
-def test_the_rule_and_ppo_drive_with_continuous_actions():
+def test_the_rule_and_ppo_drive_with_continuous_actions(tmp_path, monkeypatch):
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path))  # SB3's own logger: its folder here, not in /tmp
     from nirl_mj.gym.policies import reference_policy
 
     sb3 = pytest.importorskip("stable_baselines3")

@@ -20,8 +20,10 @@ SMALL = ["--set", "arena.size=[24.0, 24.0]", "--set", "arena.start=[4.0, 4.0]",
 GYM_SMALL = [SMALL[i + 1] for i in range(0, len(SMALL), 2)]
 
 
-def test_ppo_on_the_full_dict_through_subprocess_vector_environments():
+def test_ppo_on_the_full_dict_through_subprocess_vector_environments(tmp_path, monkeypatch):
     from stable_baselines3.common.env_util import make_vec_env
+
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path))  # SB3's own logger: its folder here, not in /tmp
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
     # "nirl_mj:" imports nirl_mj in each worker process, which registers the id there.
