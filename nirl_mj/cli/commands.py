@@ -169,12 +169,13 @@ def _demos(args: argparse.Namespace) -> int:
     _check_rerun(args, out)
     spec = _task(args)
     _no_rerun_of_continuous(args, spec)
-    noise = {"--base": args.base, "--slip": args.slip, "--random-action": args.random_action}
-    if args.expert != "noisy" and (named := [flag for flag, value in noise.items() if value is not None]):
+    # flag: (ExpertConfig's field, the value given; None: not given, the field's default)
+    noise = {"--base": ("base", args.base), "--slip": ("slip", args.slip),
+             "--random-action": ("random", args.random_action)}  # fmt: skip
+    if args.expert != "noisy" and (named := [flag for flag, (_, v) in noise.items() if v is not None]):
         raise ValueError(f"{', '.join(named)}: only for --expert noisy; with --expert {args.expert} leave "
                          "them out")  # fmt: skip
-    given = {"base": args.base, "slip": args.slip, "random": args.random_action}
-    expert = ExpertConfig(args.expert, seed=args.seed, **{k: v for k, v in given.items() if v is not None})
+    expert = ExpertConfig(args.expert, seed=args.seed, **{f: v for f, v in noise.values() if v is not None})
     workers = args.workers or default_workers()
     print(f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, "
           f"seed {args.seed}, {workers} worker(s)", file=sys.stderr)  # fmt: skip

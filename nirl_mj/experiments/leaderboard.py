@@ -163,7 +163,7 @@ def bar_plot(path: Path, summary: list[dict]) -> Path:
     rows_ = -(-len(groups) // columns)
     height = max(len([p for p in summary if (p["axis"], p["value"]) == g]) for g in groups)
     fig, axes = subplots(rows_, columns, figsize=(4.2 * columns, 0.35 * height * rows_ + 1.2), dpi=110,
-                             squeeze=False)  # fmt: skip
+                         squeeze=False)  # fmt: skip
     for k, (axis, value) in enumerate(groups):
         ax = axes[k // columns][k % columns]
         here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)][::-1]

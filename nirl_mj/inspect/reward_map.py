@@ -144,7 +144,7 @@ def grid_figure(grid: PhiGrid, rewards: np.ndarray, title: str = "r_theta(s, a)"
     low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
     w, h = grid.layout.size
     fig, axes = subplots(k, features.N_ACTIONS, figsize=(1.6 * features.N_ACTIONS + 1.2, 1.6 * k + 0.5),
-                             dpi=80, squeeze=False)  # fmt: skip
+                         dpi=80, squeeze=False)  # fmt: skip
     image = None
     for r in range(k):
         for a in range(features.N_ACTIONS):
