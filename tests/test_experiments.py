@@ -404,8 +404,9 @@ def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
 
 
 def sweep_args(spec: Path, out: Path, executor: str, *extra: str) -> list[str]:
-    return ["sweep", "--task", str(spec), "--out", str(out), "--executor", executor, "--workers", "2",
-            "--quiet", *extra]  # fmt: skip
+    workers = [] if executor == "serial" else ["--workers", "2"]  # serial refuses --workers: one process
+    return ["sweep", "--task", str(spec), "--out", str(out), "--executor", executor, *workers, "--quiet",
+            *extra]  # fmt: skip
 
 
 def cell_results(out: Path) -> dict:

@@ -265,3 +265,24 @@ def test_an_output_or_a_resume_of_the_wrong_kind_is_refused_by_name(tmp_path, ca
     from nirl_mj.experiments.definition import load_experiment
 
     assert load_experiment("tasks/table1.toml").name == "table1"
+
+
+def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path, capsys, datasets):
+    """An unknown option prints the command's usage (not the top level's); --workers with the serial
+    executor or with a Ray cluster's address, --train-seed without --policy bc and --demos with --run are
+    refused by name, not ignored; an input error draws no empty progress bar."""
+    with pytest.raises(SystemExit):
+        main(["sweep", "--only", "NIRL"])
+    err = capsys.readouterr().err
+    assert "usage: nirl-mj sweep" in err and "unrecognized arguments: --only NIRL" in err
+    compare = ["compare", "--task", "table1", "--out", str(tmp_path / "c"), "--quiet"]
+    refused(capsys, [*compare, "--executor", "serial", "--workers", "2"], "--workers 2: the serial executor")
+    refused(capsys, [*compare, "--executor", "ray", "--address", "auto", "--workers", "2"],
+            "--workers 2: the Ray cluster at auto")  # fmt: skip
+    assert not (tmp_path / "c").exists()
+    refused(capsys, ["eval", "--policy", "rule", "--train-seed", "3", "--tests", "1"],
+            "--train-seed is the training seed of --policy bc", "--policy rule")  # fmt: skip
+    run = trained(tmp_path, datasets[0])
+    refused(capsys, ["eval", "--run", str(run), "--demos", str(datasets[0])], "--demos goes with --policy")
+    err = refused(capsys, ["train", "--demos", str(tmp_path / "none.npz"), "--out", str(tmp_path / "t")])
+    assert "episode/s" not in err and "%|" not in err, err

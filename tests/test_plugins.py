@@ -95,6 +95,35 @@ class Still:
             return first if self.answer is None or calls[0] <= self.after else self.answer
 
         return policy
+
+
+class Raiser(Still):
+    """Its own error mid-training (``demonstrations`` is None: it did not declare them)."""
+
+    reads = ("features",)
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        return demonstrations["actions"]
+
+
+class BadSignature(Still):
+    def train(self, demos):
+        return lambda observation: 0
+
+
+class Picky(Still):
+    def __init__(self, k=1):
+        if k < 1:
+            raise ValueError(f"k = {k}: must be >= 1")
+        super().__init__()
+
+
+def still_of(answer):
+    """A factory: the entry point may name a function that makes the method from its settings."""
+    return Still(answer=answer)
+
+
+STILL = Still()
 '''
 
 TINY = TINY_TABLES
@@ -112,7 +141,9 @@ def installed(tmp_path, monkeypatch):
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: walker-method\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
         "[nirl_mj.methods]\nWalker = walker_method:Walker\nSilent = walker_method:Silent\n"
-        "Still = walker_method:Still\n"
+        "Still = walker_method:Still\nRaiser = walker_method:Raiser\n"
+        "BadSignature = walker_method:BadSignature\nPicky = walker_method:Picky\n"
+        "StillOf = walker_method:still_of\nSTILL = walker_method:STILL\n"
     )
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
@@ -245,6 +276,61 @@ def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installe
     with pytest.raises(ExperimentError, match="settings {'speed': 3}: .*unexpected keyword"):
         walker = {"Walker": {"settings": {"speed": 3}}}
         from_dict({"kind": "compare", "methods": ["Walker"], "method": walker}, "e.toml")
+
+
+def test_a_method_that_would_run_as_something_else_is_refused_before_anything_runs(installed, tmp_path):
+    """A built-in method's name, a name two packages provide, settings for an instance, a train() that
+    cannot take the five keywords, settings its own __init__ refuses: refused by name, before any cell."""
+
+    def refused(methods: list, match: str, tables: dict | None = None) -> None:
+        with pytest.raises(ExperimentError, match=match):
+            from_dict({"kind": "compare", "methods": methods, "method": tables or {}}, "e.toml")
+
+    other = installed / "other_method-2.0.dist-info"
+    other.mkdir()
+    (other / "METADATA").write_text("Metadata-Version: 2.1\nName: other-method\nVersion: 2.0\n")
+    (other / "entry_points.txt").write_text("[nirl_mj.methods]\nBC = walker_method:Still\nStill = x:Y\n")
+    refused(["BC"], "'BC' is a built-in method, and the installed package other-method provides a method "
+            "of that name too; rename its entry point")  # fmt: skip
+    refused(["Still"], "method 'Still': several packages provide it \\(other-method: x:Y; walker-method: "
+            "walker_method:Still\\); uninstall or rename all but one")  # fmt: skip
+    refused(["STILL"], "method 'STILL': its entry point 'walker_method:STILL' is an instance, which takes no "
+            "settings", {"STILL": {"settings": {"answer": 1}}})  # fmt: skip
+    refused(["BadSignature"], r"its train\(demos\) cannot be called as train\(demonstrations, make_env, "
+            r"budget, seed, workdir\)")  # fmt: skip
+    refused(["Picky"], r"method 'Picky': settings \{'k': 0\}: ValueError: k = 0: must be >= 1",
+            {"Picky": {"settings": {"k": 0}}})  # fmt: skip
+    factory = {"StillOf": {"settings": {"answer": 2}}}
+    made = from_dict({"kind": "compare", "methods": ["StillOf"], "method": factory}, "e.toml")
+    assert made.methods[0].declared_reads == ("demonstrations", "features")
+
+
+def test_a_methods_own_error_fails_its_cell_once_with_its_traceback(installed, tmp_path, capsys):
+    path = spec(tmp_path, '["Raiser", "rule"]')
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
+    assert "method 'Raiser': train() raised TypeError: 'NoneType' object is not subscriptable (its reads " \
+           "hold no demonstrations: it was given None)" in failed[0]  # fmt: skip
+    failures = json.loads((tmp_path / "out" / "results.json").read_text())["failures"]
+    failure = next(f for f in failures if f["id"] == "Raiser-run000")
+    assert 'return demonstrations["actions"]' in failure["traceback"]  # the method's own line
+
+
+def test_a_methods_identity_holds_its_source_and_what_it_reads(installed, tmp_path):
+    """Edited code under an unchanged version (an editable install) is another computation."""
+    from nirl_mj.experiments.definition import load_experiment
+
+    path = spec(tmp_path, '["Still", "rule"]')
+    before = load_experiment(path).identity()
+    still = next(m for m in before["methods"] if m["name"] == "Still")
+    assert still["reads"] == ["demonstrations", "features"] and len(still["source"]) == 16
+    module = installed / "walker_method" / "__init__.py"
+    module.write_text(module.read_text() + "\n# edited\n")
+    after = load_experiment(path).identity()
+    assert after != before and [m for m in after["methods"] if m["name"] == "rule"] == [
+        m for m in before["methods"] if m["name"] == "rule"
+    ]
 
 
 def test_an_installed_method_resumes_after_a_kill(installed, tmp_path):

@@ -293,6 +293,20 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     capsys.readouterr()
     assert main(["leaderboard", str(a), str(d), "--out", str(tmp_path / "y")]) == 2
     assert "method BC of" in capsys.readouterr().err
+    # one identity, other results for a run both hold (code changed under it): refused, not one taken
+    import shutil
+
+    e = shutil.copytree(b, tmp_path / "e")
+    rows = (e / "rows.csv").read_text().splitlines()
+    at = next(i for i, line in enumerate(rows) if ",rule,0," in line)
+    cells = rows[at].split(",")
+    success = rows[0].split(",").index("success")
+    cells[success] = str(1.0 - float(cells[success]))
+    rows[at] = ",".join(cells)
+    (e / "rows.csv").write_text("\n".join(rows) + "\n")
+    assert main(["leaderboard", str(a), str(e), "--out", str(tmp_path / "z")]) == 2
+    err = capsys.readouterr().err
+    assert "method rule, run 0: " in err and "with other results" in err and not (tmp_path / "z").exists()
 
 
 def test_the_leaderboard_reads_what_each_directory_recorded_and_nothing_from_a_damaged_file(tmp_path):

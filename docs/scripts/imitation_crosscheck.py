@@ -74,6 +74,7 @@ import importlib.metadata
 import json
 import math
 import platform
+import shutil
 import sys
 import tempfile
 import time
@@ -281,11 +282,15 @@ def main(argv: list[str] | None = None) -> int:
         "gen_replay_buffer_capacity": rollout,
         "allow_variable_horizon": True,
     }
-    trainer = (AIRL if args.algo == "airl" else GAIL)(
-        demonstrations=demos, venv=venv, gen_algo=model, reward_net=reward_net, log_dir=log_dir,
-        custom_logger=imit_logger.configure(str(log_dir), ["csv"]), **trainer_settings,
-    )  # fmt: skip
-    trainer.train(total_timesteps=rounds * rollout)
+    try:  # the trainer's log is read for its last round, then removed: the script leaves no folder behind
+        trainer = (AIRL if args.algo == "airl" else GAIL)(
+            demonstrations=demos, venv=venv, gen_algo=model, reward_net=reward_net, log_dir=log_dir,
+            custom_logger=imit_logger.configure(str(log_dir), ["csv"]), **trainer_settings,
+        )  # fmt: skip
+        trainer.train(total_timesteps=rounds * rollout)
+        disc_stats = last_disc_stats(log_dir)
+    finally:
+        shutil.rmtree(log_dir, ignore_errors=True)
     train_seconds = time.monotonic() - start
     venv.close()
 
@@ -337,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
         "metrics": metrics,
         "test_action_shares": dict(zip(ACTION_NAMES, test_shares.round(4).tolist(), strict=True)),
         "final_policy_on_demonstrations": on_demonstrations(model, job.demos_path, scaled),
-        "discriminator_last_round": last_disc_stats(log_dir),
+        "discriminator_last_round": disc_stats,
         "settings": {
             "ppo": {"policy": "MlpPolicy", "envs": ENVS, **ppo_settings},
             "trainer": trainer_settings,

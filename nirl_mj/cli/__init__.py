@@ -24,7 +24,9 @@ GYM_EXTRA = ("gymnasium", "stable_baselines3", "minari", "h5py")
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    args, unknown = build_parser().parse_known_args(argv)
+    if unknown:  # the command's own usage, not the top level's (argparse's default with subcommands)
+        args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return args.func(args)
     except CLEAN_ERRORS as exc:

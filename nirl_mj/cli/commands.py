@@ -47,8 +47,31 @@ from nirl_mj.sim.spec import SpecError, apply_overrides, load_task
 from nirl_mj.sim.task import make_env
 
 
-def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> tqdm:
-    return tqdm(total=total, unit=unit, file=sys.stderr, disable=getattr(args, "quiet", False), **kw)
+class _LazyBar:
+    """A tqdm progress bar drawn at its first use (update, postfix or write), so that an input error
+    found before any work starts prints its one line under no empty bar."""
+
+    def __init__(self, **kw) -> None:
+        self._kw, self._bar = kw, None
+
+    def __getattr__(self, name: str):
+        if self._bar is None:
+            self._bar = tqdm(**self._kw)
+        return getattr(self._bar, name)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+    def __enter__(self) -> _LazyBar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> _LazyBar:
+    return _LazyBar(total=total, unit=unit, file=sys.stderr, disable=getattr(args, "quiet", False), **kw)
 
 
 def _summary(trajectories: list, summary: dict) -> dict | None:
@@ -370,10 +393,15 @@ def _config_overrides(assignments: list[str]) -> dict:
 
 def _subject(args: argparse.Namespace) -> Subject:
     """A run's policy (``--run``) or a reference policy (``--policy``), for ``eval`` and ``render``."""
+    demos, train_seed = getattr(args, "demos", None), getattr(args, "train_seed", None)
+    if train_seed is not None and args.policy != "bc":
+        raise SpecError(f"--train-seed is the training seed of --policy bc; it has no use with "
+                        f"{f'--policy {args.policy}' if args.policy else '--run'}: leave it out")  # fmt: skip
     if args.run:
+        if demos:
+            raise SpecError("--demos goes with --policy (a run's demonstrations are its own): leave it out")
         return run_subject(args.run, args.which, args.task)
-    demos = getattr(args, "demos", None)
-    return reference_subject(args.policy, args.task, demos, getattr(args, "train_seed", 0))
+    return reference_subject(args.policy, args.task, demos, train_seed or 0)
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -535,7 +563,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
                           getattr(args, "reuse", None), only, points,
                           restore=getattr(args, "restore", None))  # fmt: skip
-    bars: list[tqdm] = []  # made once the number of cells is known
+    bars: list[_LazyBar] = []  # made once the number of cells is known
 
     def log(text: str) -> None:
         tqdm.write(text, file=sys.stderr)

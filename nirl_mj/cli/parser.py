@@ -50,7 +50,7 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
     uses what ``task`` describes as its default; ``task`` None: no task options) with --set;
     ``common`` from json, quiet, overwrite[=WHAT], rerun=WHAT, backend=WHAT."""
     parser = sub.add_parser(name, help=help)
-    parser.set_defaults(func=func)
+    parser.set_defaults(func=func, command_parser=parser)
     if task is not None:
         parser.add_argument(
             "--task", default=None, help=f"task name under tasks/ or a .toml path (default: {task})"
@@ -233,7 +233,8 @@ def build_parser() -> argparse.ArgumentParser:
     who.add_argument("--run", help="run directory")
     who.add_argument("--policy", choices=REFERENCES, help="a reference policy instead of a run")
     p.add_argument("--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)")
-    p.add_argument("--train-seed", type=_seed, default=0, help="with --policy bc: its training seed")
+    p.add_argument("--train-seed", type=_seed, default=None,
+                   help="with --policy bc: its training seed (default: 0)")  # fmt: skip
     p.add_argument("--tests", type=_positive_int, default=100)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas")
     p.add_argument("--which", default="selected", metavar="selected|last|N",

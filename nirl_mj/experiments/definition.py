@@ -576,6 +576,12 @@ def _installed_text() -> str:
 
 def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     base = BUILTIN_METHODS.get(name)
+    if base is not None and name in _installed():  # else the built-in would run under the plugin's name
+        from nirl_mj.experiments.plugins import package_of
+
+        raise ExperimentError(f"{where}: {name!r} is a built-in method, and the installed package "
+                              f"{package_of(_installed()[name])} provides a method of that name too; rename "
+                              "its entry point (docs/EXTENDING.md)")  # fmt: skip
     if base is None and name in _installed():
         base = MethodSpec(name, "plugin", plugin=name)
     if table is None:
@@ -668,10 +674,11 @@ def _method_identity(method: MethodSpec) -> dict:
     where set, so that the identity of an experiment written before they existed is unchanged."""
     data = dataclasses.asdict(method)
     if method.kind == "plugin":
-        from nirl_mj.experiments.plugins import version_of
+        from nirl_mj.experiments.plugins import source_digest, version_of
 
         return {"name": method.name, "kind": "plugin", "plugin": method.plugin, "steps": method.steps,
-                "settings": method.settings, "version": version_of(method.plugin)}  # fmt: skip
+                "settings": method.settings, "version": version_of(method.plugin),
+                "source": source_digest(method.plugin), "reads": sorted(method.declared_reads)}  # fmt: skip
     del data["plugin"], data["declared_reads"]
     legacy = method.kind == "rl" and (method.selection, method.envs) == (LEGACY["selection"], LEGACY["envs"])
     for key in RL_KEYS:

@@ -158,6 +158,19 @@ def call_cell(fn: Callable[..., Any], args: tuple) -> tuple[str, str, float, str
         torch.set_num_threads(threads)
 
 
+def unused_workers(executor: str, workers: int | None, address: str | None) -> str | None:
+    """Why ``workers`` would be ignored (more than 1 for the serial executor, or any for a Ray cluster at
+    ``address``, whose own CPUs bound the parallelism), or None when it is used or not given."""
+    if workers is None:
+        return None
+    if executor == "serial" and workers != 1:
+        return f"--workers {workers}: the serial executor runs every cell in this process; leave it out"
+    if executor == "ray" and address:
+        return (f"--workers {workers}: the Ray cluster at {address} runs as many cells as it has CPUs; "
+                "--workers sizes a local cluster only: leave it out")  # fmt: skip
+    return None
+
+
 class Executor:
     """Runs lists of cells; keeps its processes (or its Ray connection) between :meth:`run` calls,
     so an experiment's phases pay the start-up once. Use as a context manager, or :meth:`close`.

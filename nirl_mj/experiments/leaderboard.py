@@ -112,11 +112,30 @@ def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str], dict[str,
                                       "differ): rename one of them in its experiment file")  # fmt: skip
             if reads.get(name) is None:
                 reads[name] = recorded.get(name)
-            if name in methods:
-                continue  # the same computation: taken from the first directory
+            if name in methods:  # the same computation: taken from the first directory, if it agrees
+                mine = [r for r in found if r["method"] == name]
+                _same_runs(name, [r for r in rows if r["method"] == name], mine, source[name], str(d))
+                continue
             methods[name], source[name] = m, str(d)
             rows += [r for r in found if r["method"] == name]
     return rows, source, reads
+
+
+def _same_runs(name: str, kept: list[dict], other: list[dict], first: str, second: str) -> None:
+    """Refuses two directories whose cells of one method (one identity) disagree on a run they both
+    hold: a method changed without a change of identity (a plugin edited and not reinstalled, ...)."""
+    where = ("axis", "value", "run")
+    held = {tuple(r[k] for k in where): r for r in kept}
+    for r in other:
+        mine = held.get(tuple(r[k] for k in where))
+        if mine is not None and any(mine[k] != r[k] for k in tidy.COLUMNS if k not in ("suite", *where)):
+            point = f" at {r['axis']}={r['value']}" if r["axis"] else ""
+            raise ExperimentError(
+                f"method {name}, run {r['run']}{point}: "
+                f"{first} and {second} record the same computation with other results (success "
+                f"{mine['success']} against {r['success']}): one of them was computed by other code; "
+                "recompute it, or leave one directory out"
+            )
 
 
 def points(rows: list[dict]) -> list[dict]:

@@ -34,6 +34,7 @@ cell is not retried.
 from __future__ import annotations
 
 import functools
+import inspect
 import os
 from collections.abc import Callable
 from importlib import metadata
@@ -46,6 +47,9 @@ from nirl_mj.sim.spec import SpecError
 
 GROUP = "nirl_mj.methods"
 OBSERVATIONS = ("features",)
+TRAIN_ARGUMENTS = ("demonstrations", "make_env", "budget", "seed", "workdir")
+"""The keyword arguments a method's ``train`` is called with."""
+TRAIN_SIGNATURE = f"train({', '.join(TRAIN_ARGUMENTS)})"
 
 
 class MethodError(SpecError):
@@ -54,48 +58,101 @@ class MethodError(SpecError):
 
 
 def discovered() -> dict[str, metadata.EntryPoint]:
-    """Every installed method of the ``nirl_mj.methods`` group, by name."""
-    return {ep.name: ep for ep in metadata.entry_points(group=GROUP)}
+    """Every installed method of the ``nirl_mj.methods`` group, by name (the first of a name that two
+    packages provide: :func:`provider` refuses such a name when it is used)."""
+    found: dict[str, metadata.EntryPoint] = {}
+    for ep in metadata.entry_points(group=GROUP):
+        found.setdefault(ep.name, ep)
+    return found
+
+
+def package_of(ep: metadata.EntryPoint) -> str:
+    """The name of the distribution that installs ``ep``."""
+    return ep.dist.name if ep.dist is not None else "an unknown package"
+
+
+def provider(name: str) -> metadata.EntryPoint:
+    """The entry point of installed method ``name``; refused when no package provides it, or when two
+    do (differently). (``experiments.definition`` refuses one of a built-in method's name.)"""
+    eps = [ep for ep in metadata.entry_points(group=GROUP) if ep.name == name]
+    if not eps:
+        raise MethodError(f"method {name!r}: no installed package provides it (entry point group {GROUP}; "
+                          f"installed: {', '.join(discovered()) or 'none'})")  # fmt: skip
+    distinct = {(package_of(ep), ep.value) for ep in eps}  # one package seen twice on the path is one
+    if len(distinct) > 1:
+        raise MethodError(f"method {name!r}: several packages provide it ("
+                          f"{'; '.join(f'{pkg}: {value}' for pkg, value in sorted(distinct))}); "
+                          "uninstall or rename all but one")  # fmt: skip
+    return eps[0]
 
 
 def version_of(name: str) -> str:
     """``DISTRIBUTION VERSION`` of the package that provides method ``name`` (in an experiment's
     identity: another version of a method is another computation)."""
-    ep = discovered().get(name)
-    if ep is None:
-        raise MethodError(f"method {name!r}: no installed package provides it (entry point group {GROUP}; "
-                          f"installed: {', '.join(discovered()) or 'none'})")  # fmt: skip
-    dist = ep.dist
+    dist = provider(name).dist
     return f"{dist.name} {dist.version}" if dist is not None else "unknown"
+
+
+def source_digest(name: str) -> str:
+    """SHA-256 (16 hex digits) of the Python sources of the package that holds method ``name``'s entry
+    point (every ``.py`` file of its top-level package, or its one module): in the method's identity,
+    so that code edited under an unchanged version (an editable install) is another computation."""
+    import hashlib
+    from importlib.machinery import PathFinder
+
+    top = provider(name).module.partition(".")[0]
+    try:  # on the import path as a new process finds it (not an earlier import's, in sys.modules)
+        spec = PathFinder.find_spec(top)
+    except (ImportError, ValueError) as exc:
+        raise MethodError(f"method {name!r}: its module {top!r} cannot be found: {exc}") from None
+    if spec is None:
+        raise MethodError(f"method {name!r}: its module {top!r} cannot be found")
+    if spec.submodule_search_locations:
+        roots = [Path(p) for p in spec.submodule_search_locations]
+        files = sorted({(f.relative_to(root).as_posix(), f) for root in roots for f in root.rglob("*.py")})
+    elif spec.origin and spec.origin.endswith(".py"):
+        files = [(Path(spec.origin).name, Path(spec.origin))]
+    else:  # compiled or frozen: its version names it
+        return "no Python source"
+    digest = hashlib.sha256()
+    for relative, path in files:
+        digest.update(relative.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
 
 
 def load_method(name: str, settings: dict | None = None) -> Any:
     """The method object of entry point ``name``, instantiated with ``settings`` if it is a class;
     its declarations checked."""
-    ep = discovered().get(name)
-    if ep is None:
-        version_of(name)  # raises, naming what is installed
+    ep = provider(name)
     try:
         target = ep.load()
     except Exception as exc:  # a broken package: one line naming it
         raise MethodError(f"method {name!r}: its entry point {ep.value!r} cannot be loaded: "
                           f"{type(exc).__name__}: {exc}") from None  # fmt: skip
+    # a class or a factory function is called with the settings; an object with train() is the method
+    made = isinstance(target, type) or (callable(target) and not hasattr(target, "train"))
+    if not made and settings:
+        raise MethodError(f"method {name!r}: its entry point {ep.value!r} is an instance, which takes no "
+                          f"settings (given {settings}); point it at a class or a factory")  # fmt: skip
     try:
-        method = target(**(settings or {})) if isinstance(target, type) else target
-    except TypeError as exc:
-        raise MethodError(f"method {name!r}: settings {settings}: {exc}") from None
+        method = target(**(settings or {})) if made else target
+    except Exception as exc:  # its own checks of its settings: one line naming the method
+        raise MethodError(
+            f"method {name!r}: settings {settings or {}}: {type(exc).__name__}: {exc}"
+        ) from None
     check_declarations(name, method)
     return method
 
 
 def check_declarations(name: str, method: Any) -> None:
     """Refuses a method whose ``reads``, ``observation`` or ``train`` is missing or wrong."""
-    from nirl_mj.experiments.reads import check_words
+    from nirl_mj.experiments.reads import VOCABULARY, check_words
 
     reads = getattr(method, "reads", None)
     if not isinstance(reads, list | tuple) or not all(isinstance(w, str) for w in reads):
-        raise MethodError(f"method {name!r}: declare `reads`, a list of words of "
-                          "nirl_mj.experiments.reads.VOCABULARY (what it reads)")  # fmt: skip
+        given = "it declares none" if reads is None else f"it declares {reads!r} ({type(reads).__name__})"
+        raise MethodError(f"method {name!r}: declare `reads`, a list of what it reads, words of "
+                          f"{', '.join(VOCABULARY)}; {given}")  # fmt: skip
     try:
         check_words(list(reads), f"method {name!r}")
     except ValueError as exc:
@@ -107,10 +164,16 @@ def check_declarations(name: str, method: Any) -> None:
         )
     if observation not in reads:  # its policy acts on them, and its demonstrations hold them
         raise MethodError(f"method {name!r}: it acts on {observation}: declare {observation} in its reads")
-    if not callable(getattr(method, "train", None)):
-        raise MethodError(
-            f"method {name!r}: it has no train(demonstrations, make_env, budget, seed, workdir)"
-        )
+    train = getattr(method, "train", None)
+    if not callable(train):
+        raise MethodError(f"method {name!r}: it has no {TRAIN_SIGNATURE}")
+    try:
+        inspect.signature(train).bind(**dict.fromkeys(TRAIN_ARGUMENTS))
+    except TypeError as exc:  # called with these keywords: found now, not after the demonstrations
+        raise MethodError(f"method {name!r}: its train{inspect.signature(train)} cannot be called as "
+                          f"{TRAIN_SIGNATURE} ({exc})") from None  # fmt: skip
+    except ValueError:  # a builtin without a signature: it is called as it is
+        pass
 
 
 def demonstration_arrays(trajectories: list) -> dict[str, np.ndarray]:
@@ -264,10 +327,17 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
             ) from None
         return made[-1]
 
+    given = demos if "demonstrations" in reads else None
     try:
-        given = demos if "demonstrations" in reads else None
         policy = method.train(demonstrations=given, make_env=make_env, budget=job.method.steps, seed=job.seed,
                               workdir=str(workdir))  # fmt: skip
+    except (MethodError, MemoryError, OSError, ModuleNotFoundError):
+        raise  # the protocol's refusals, and what another attempt may not meet again, as they are
+    except Exception as exc:
+        # the method's own error: its cell is seeded, so another attempt fails the same way (not retried)
+        hint = " (its reads hold no demonstrations: it was given None)" if given is None else ""
+        raise MethodError(f"method {job.method.name!r}: train() raised {type(exc).__name__}: {exc}{hint}; "
+                          "its traceback is in the failure's record") from exc  # fmt: skip
     finally:
         for env in made:
             env.close()

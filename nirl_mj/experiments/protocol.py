@@ -329,6 +329,10 @@ class Execution:
                 raise ExperimentError(f"{flag} takes cells into a run; --report runs nothing: give one")
         if self.address and self.executor != "ray":
             raise ExperimentError("--address is the address of a Ray cluster: give --executor ray with it")
+        from nirl_mj.experiments.executors import unused_workers
+
+        if (problem := unused_workers(self.executor, self.workers, self.address)) is not None:
+            raise ExperimentError(problem)
 
     def start(self, out: Path, log: Callable[[str], None] | None = None) -> CellRunner:
         """A runner storing finished cells in OUT/cells; use it as a context manager. ``log``

@@ -414,75 +414,79 @@ def train_rl(
     legacy = "selection" not in config
     train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
     venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy, config)
-    callbacks = []
-    code, _ = observation_code(config)
-    if adversarial:
-        expert = adv.expert_transitions(trajectories, code, absorbing=adv.variant_of(algo).absorbing)
-        reward = adv.AdversarialReward(algo, config["gamma"], expert, seed)
-        if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
-            reward.load_state(adv.read_discriminator(run))
-        venv = adv.reward_wrapper(venv, reward)
-        callbacks.append(adv.training_callback(venv, reward))
-    settings = _model_settings(config)
-    if resume and run.file(MODEL_FILE).is_file():
-        model = cls.load(run.model_file(), env=venv, device="cpu")
-    else:
-        model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
-    # a logger that writes nowhere: without one, each learn() makes an empty tempdir/SB3-<time> folder
-    from stable_baselines3.common.logger import Logger
-
-    model.set_logger(Logger(folder=None, output_formats=[]))
-    if adversarial:
-        reward.policy = model.policy
-    done_before = list(record["train_seeds"])
-    scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
-    if selection == "demo_balanced":
-        scorer = _demo_scorer(model, trajectories, code)
-    elif selection == "validation_success":
-        scorer = _validation_scorer(model, record, task, seed)
-
-    def checkpoint(outcomes: list[bool]) -> None:
-        """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
-        ``outcomes``: the last training episodes ended (at most :data:`SUCCESS_WINDOW`)."""
+    try:  # the environments are closed whatever fails after they start (a model that cannot load, ...)
+        callbacks = []
+        code, _ = observation_code(config)
         if adversarial:
-            adv.save_discriminator(run, reward)
-        run.write_model(model.save)
-        steps_now = int(model.num_timesteps)
-        best = record.get("selected")
-        score, driven = None, None
-        if selection == "validation_success":
-            score, driven = scorer(None if best is None else best["score"])
-        elif scorer is not None:
-            score = scorer()
-        elif selection == "training_success" and outcomes:
-            score = float(np.mean(outcomes))
-        replaced = None
-        if score is not None:
-            # the episodes the score is over: the validation arenas, the demonstrations, or the window
-            over = {"validation_success": len(record["validation_seeds"]), "demo_balanced": len(trajectories)}
-            entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
-            if driven is not None and driven < entry["episodes"]:
-                # cut short, it cannot be kept: no score, the most it could have reached, the arenas driven
-                entry.update(score=None, at_most=score, driven=driven)
-            record["scores"] = [*record.get("scores", []), entry]
-            unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
-            better = best is None or unscored or (score >= best["score"] and steps_now > best["steps"])
-            if better and entry["score"] is not None:  # a checkpoint cut short cannot be kept
-                # a file per selected checkpoint, named in the record: a kill between the two writes
-                # leaves the record naming a file that holds what it says
-                name = SELECTED_MODEL_PATTERN.format(steps=steps_now)
-                run.write_model(model.save, name)
-                record["selected"], replaced = {**entry, "file": name}, (best or {}).get("file")
-        if selection == "training_success":
-            record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
-        record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
-        run.write_record(record)
-        if replaced:
-            run.file(replaced).unlink(missing_ok=True)
+            expert = adv.expert_transitions(trajectories, code, absorbing=adv.variant_of(algo).absorbing)
+            reward = adv.AdversarialReward(algo, config["gamma"], expert, seed)
+            if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
+                reward.load_state(adv.read_discriminator(run))
+            venv = adv.reward_wrapper(venv, reward)
+            callbacks.append(adv.training_callback(venv, reward))
+        settings = _model_settings(config)
+        if resume and run.file(MODEL_FILE).is_file():
+            model = cls.load(run.model_file(), env=venv, device="cpu")
+        else:
+            model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
+        # a logger that writes nowhere: without one, each learn() makes an empty tempdir/SB3-<time> folder
+        from stable_baselines3.common.logger import Logger
 
-    progress = _Progress(checkpoint, checkpoint_every, on_steps, record.get("recent_outcomes", []))
-    callbacks.append(progress)
-    try:
+        model.set_logger(Logger(folder=None, output_formats=[]))
+        if adversarial:
+            reward.policy = model.policy
+        done_before = list(record["train_seeds"])
+        scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
+        if selection == "demo_balanced":
+            scorer = _demo_scorer(model, trajectories, code)
+        elif selection == "validation_success":
+            scorer = _validation_scorer(model, record, task, seed)
+
+        def checkpoint(outcomes: list[bool]) -> None:
+            """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
+            ``outcomes``: the last training episodes ended (at most :data:`SUCCESS_WINDOW`)."""
+            if adversarial:
+                adv.save_discriminator(run, reward)
+            run.write_model(model.save)
+            steps_now = int(model.num_timesteps)
+            best = record.get("selected")
+            score, driven = None, None
+            if selection == "validation_success":
+                score, driven = scorer(None if best is None else best["score"])
+            elif scorer is not None:
+                score = scorer()
+            elif selection == "training_success" and outcomes:
+                score = float(np.mean(outcomes))
+            replaced = None
+            if score is not None:
+                # the episodes the score is over: the validation arenas, the demonstrations, or the window
+                over = {
+                    "validation_success": len(record["validation_seeds"]),
+                    "demo_balanced": len(trajectories),
+                }
+                entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
+                if driven is not None and driven < entry["episodes"]:
+                    # cut short, it cannot be kept: no score, the most it could have reached, the
+                    # arenas driven
+                    entry.update(score=None, at_most=score, driven=driven)
+                record["scores"] = [*record.get("scores", []), entry]
+                unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
+                better = best is None or unscored or (score >= best["score"] and steps_now > best["steps"])
+                if better and entry["score"] is not None:  # a checkpoint cut short cannot be kept
+                    # a file per selected checkpoint, named in the record: a kill between the two writes
+                    # leaves the record naming a file that holds what it says
+                    name = SELECTED_MODEL_PATTERN.format(steps=steps_now)
+                    run.write_model(model.save, name)
+                    record["selected"], replaced = {**entry, "file": name}, (best or {}).get("file")
+            if selection == "training_success":
+                record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
+            record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
+            run.write_record(record)
+            if replaced:
+                run.file(replaced).unlink(missing_ok=True)
+
+        progress = _Progress(checkpoint, checkpoint_every, on_steps, record.get("recent_outcomes", []))
+        callbacks.append(progress)
         model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
         progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
     finally:
