@@ -342,6 +342,18 @@ def test_the_scratch_folder_of_a_killed_collection_is_removed_by_the_next(tmp_pa
     assert not orphan.exists() and alive.exists()
 
 
+def test_the_temporary_file_of_a_killed_writer_is_removed_by_the_next_writer_of_that_file(tmp_path):
+    """A dataset's writer killed mid-write leaves ``.NAME.<hex>.tmp.npz`` beside it; the next writer of
+    that file (who holds its lock) removes it, and no other file's."""
+    killed = tmp_path / ".d.npz.1a2b3c4d.tmp.npz"
+    killed.write_bytes(b"half a dataset")
+    other = tmp_path / ".e.npz.1a2b3c4d.tmp.npz"  # another file's (its writer may be alive)
+    other.write_bytes(b"half another dataset")
+    assert main(["demos", "--expert", "rule", "--episodes", "1", "--workers", "1", "--quiet",
+                 "--out", str(tmp_path / "d.npz"), *TINY]) == 0  # fmt: skip
+    assert not killed.exists() and other.exists() and (tmp_path / "d.npz").is_file()
+
+
 def test_a_resume_of_a_training_that_had_not_started_says_to_run_it_without_resume(demos, tmp_path, capsys):
     run = tmp_path / "run"
     run.mkdir()

@@ -92,6 +92,14 @@ def leftover_temporaries(directory: str | os.PathLike) -> list[Path]:
     return sorted(p for p in directory.iterdir() if p.is_file() and _TEMPORARY.match(p.name))
 
 
+def leftover_temporaries_of(path: str | os.PathLike) -> list[Path]:
+    """The temporary files of writes of ``path`` itself (beside it): left only by a writer killed while
+    writing, so safe to delete by the holder of ``path``'s :class:`~nirl_mj.data.lock.DirectoryLock`."""
+    path = Path(path)
+    own = re.compile(rf"^\.{re.escape(path.name)}\.[0-9a-f]{{8}}\.tmp[^/]*$")
+    return [p for p in leftover_temporaries(path.parent) if own.match(p.name)]
+
+
 def _create_temporary(path: Path, suffix: str) -> Path:
     """A new empty file ``.<name>.<random>.tmp<suffix>`` next to ``path``."""
     while True:

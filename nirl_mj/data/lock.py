@@ -4,7 +4,8 @@
 of ``path`` (beside the directory, so that the directory's own contents stay what its commands
 write), with the holder's process id in it, and removes it when done. A second writer is refused at
 once with one line naming that process. The operating system releases the lock when its process
-ends, however it ends (kill -9 too), so a lock file left by a dead process is simply taken over.
+ends, however it ends (kill -9 too), so a lock file left by a dead process is simply taken over, and
+the temporary file such a writer left beside a file it was writing (``data.atomic``) is deleted.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
+
+from nirl_mj.data.atomic import leftover_temporaries_of
 
 
 class LockedError(RuntimeError):
@@ -51,6 +54,9 @@ class DirectoryLock:
                     os.ftruncate(fd, 0)
                     os.pwrite(fd, str(os.getpid()).encode(), 0)
                     self._fd = fd
+                    # every writer of the path holds this lock: a temporary of it now is a killed one's
+                    for leftover in leftover_temporaries_of(self.path):
+                        leftover.unlink(missing_ok=True)
                     return self
             except BaseException:
                 os.close(fd)  # an error never leaves the descriptor open (and so the lock held)
