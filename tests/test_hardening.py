@@ -193,6 +193,11 @@ def test_ctrl_c_during_training_says_how_to_resume(tmp_path, datasets, capsys, m
     assert main(["train", "--demos", str(datasets[0]), "--out", str(tmp_path / "r"), "--quiet"]) == 130
     err = capsys.readouterr().err
     assert "nothing was written" not in err and f"nirl-mj train --out {tmp_path / 'r'} --resume" in err
+    # the main job resumes only with its own flags: its hint repeats the command as given
+    monkeypatch.setattr(commands, "main_job", interrupted)
+    given = ["run", "--demos", "3", "--episodes", "2", "--out", str(tmp_path / "m"), "--quiet", *TINY]
+    assert main(given) == 130
+    assert f"continue with nirl-mj {' '.join(given)} --resume" in capsys.readouterr().err
 
 
 def test_a_directory_as_output_file_is_refused_before_any_episode(tmp_path, capsys):
@@ -286,3 +291,18 @@ def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path
     refused(capsys, ["eval", "--run", str(run), "--demos", str(datasets[0])], "--demos goes with --policy")
     err = refused(capsys, ["train", "--demos", str(tmp_path / "none.npz"), "--out", str(tmp_path / "t")])
     assert "episode/s" not in err and "%|" not in err, err
+    refused(capsys, ["eval", "--policy", "rule", "--which", "last"], "--which chooses among a run's policies")
+    render = ["render", "--policy", "rule", "--out", str(tmp_path / "v.mp4")]
+    refused(capsys, [*render, "--arenas", "3"], "--arenas sets --paths's figure")
+    refused(capsys, [*render, "--snapshots", "3"], "--snapshots sets --montage's figure")
+    with pytest.raises(SystemExit):
+        main([*render, "--fps", "0"])
+    assert "--fps: expected a frame rate > 0, got 0" in capsys.readouterr().err
+    # an experiment file given as a task names what it is; a refused command leaves no folder behind
+    refused(capsys, ["task", "tasks/table1.toml"], "is an experiment (kind = 'compare'), not a task")
+    assert "table1" not in refused(capsys, ["task", "nonexistent"], "unknown task")
+    refused(capsys, ["compare", "--task", "table1", "--only", "Foo", "--out", str(tmp_path / "np" / "c")],
+            "--only Foo")  # fmt: skip
+    assert not (tmp_path / "np").exists()
+    knn = Path(__file__).resolve().parents[1] / "examples" / "knn_method" / "experiment.toml"
+    refused(capsys, ["compare", "--task", str(knn), "--quick", "--report"], "has no [quick] table")

@@ -310,8 +310,8 @@ def test_a_methods_own_error_fails_its_cell_once_with_its_traceback(installed, t
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
     failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
-    assert "method 'Raiser': train() raised TypeError: 'NoneType' object is not subscriptable (its reads " \
-           "hold no demonstrations: it was given None)" in failed[0]  # fmt: skip
+    assert "method 'Raiser': train() raised TypeError: 'NoneType' object is not subscriptable " \
+           "(demonstrations=None: they are not in its reads)" in failed[0]  # fmt: skip
     failures = json.loads((tmp_path / "out" / "results.json").read_text())["failures"]
     failure = next(f for f in failures if f["id"] == "Raiser-run000")
     assert 'return demonstrations["actions"]' in failure["traceback"]  # the method's own line

@@ -59,21 +59,13 @@ def test_rl_trains_evaluates_on_held_out_arenas_and_refuses_to_overwrite(tmp_pat
     capsys.readouterr()
     assert main(args) == 2
     assert "pass --resume to continue it, --overwrite to replace it" in capsys.readouterr().err
-    resume = [
-        "rl",
-        "--algo",
-        "dqn",
-        "--steps",
-        "128",
-        "--seed",
-        "3",
-        "--out",
-        str(run),
-        "--quiet",
-        "--resume",
-    ]
-    assert main(resume) == 0  # on to a larger total, with the run's own task
+    # on to a larger total, with the run's own task, algorithm and seed (not given: the run's)
+    assert main(["rl", "--steps", "128", "--out", str(run), "--quiet", "--resume"]) == 0
     assert json.loads((run / "run.json").read_text())["steps_done"] == 128
+    assert main(["rl", "--seed", "4", "--out", str(run), "--quiet", "--resume"]) == 2  # given: checked
+    assert "was trained with another seed" in capsys.readouterr().err
+    assert main(["rl", "--out", str(tmp_path / "none"), "--quiet", "--resume"]) == 2
+    assert "nothing to resume in" in capsys.readouterr().err and not (tmp_path / "none").exists()
     assert main([*args, "--overwrite"]) == 0
     assert main(["eval", "--run", str(run), "--which", "last", "--tests", "2", "--quiet"]) == 0
     assert main(["eval", "--run", str(run), "--which", "3", "--quiet"]) == 2

@@ -293,7 +293,8 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     capsys.readouterr()
     assert main(["leaderboard", str(a), str(d), "--out", str(tmp_path / "y")]) == 2
     assert "method BC of" in capsys.readouterr().err
-    # one identity, other results for a run both hold (code changed under it): refused, not one taken
+    # one identity, other results for a run both hold (another machine's floating point): the first's is
+    # taken, and the disagreement listed; the CSV's rounding alone is none
     import shutil
 
     e = shutil.copytree(b, tmp_path / "e")
@@ -304,9 +305,15 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     cells[success] = str(1.0 - float(cells[success]))
     rows[at] = ",".join(cells)
     (e / "rows.csv").write_text("\n".join(rows) + "\n")
-    assert main(["leaderboard", str(a), str(e), "--out", str(tmp_path / "z")]) == 2
-    err = capsys.readouterr().err
-    assert "method rule, run 0: " in err and "with other results" in err and not (tmp_path / "z").exists()
+    assert main(["leaderboard", str(a), str(e), "--out", str(tmp_path / "z")]) == 0
+    board = (tmp_path / "z" / "leaderboard.md").read_text()
+    assert board.count("hold other results of the same computation") == 1
+    assert f"- rule, run 0: `{a}` and `{e}` hold other results of the same computation (success" in board
+    rule = [r for r in tidy.read(tmp_path / "z" / "leaderboard.csv") if r["method"] == "rule"]
+    assert rule == [r for r in tidy.read(a / "rows.csv") if r["method"] == "rule"]  # a's rows
+    (e / "rows.csv").unlink()  # its cells' full precision against a's CSV: the same
+    assert main(["leaderboard", str(a), str(e), "--out", str(tmp_path / "w")]) == 0
+    assert "disagree" not in (tmp_path / "w" / "leaderboard.md").read_text()
 
 
 def test_the_leaderboard_reads_what_each_directory_recorded_and_nothing_from_a_damaged_file(tmp_path):

@@ -3,6 +3,7 @@ Nothing imports this package."""
 
 from __future__ import annotations
 
+import shlex
 import sys
 
 from nirl_mj.cli.parser import build_parser
@@ -24,7 +25,8 @@ GYM_EXTRA = ("gymnasium", "stable_baselines3", "minari", "h5py")
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nirl-mj`` console script; returns the exit status."""
-    args, unknown = build_parser().parse_known_args(argv)
+    given = list(sys.argv[1:] if argv is None else argv)
+    args, unknown = build_parser().parse_known_args(given)
     if unknown:  # the command's own usage, not the top level's (argparse's default with subcommands)
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
@@ -39,8 +41,12 @@ def main(argv: list[str] | None = None) -> int:
               f"{exc.name!r}): pip install -e '.[gym]'", file=sys.stderr)  # fmt: skip
         return 2
     except KeyboardInterrupt:
+        # {again}: the command as given, with --resume (a main job resumes only with its own flags)
+        again = "nirl-mj " + shlex.join([*(a for a in given if a != "--resume"), "--resume"])
         kept = (
-            args.interrupted.format(**vars(args)) if hasattr(args, "interrupted") else "nothing was written"
+            args.interrupted.format(**vars(args), again=again)
+            if hasattr(args, "interrupted")
+            else "nothing was written"
         )
         print(f"nirl-mj {args.command}: interrupted; {kept}", file=sys.stderr)
         return 130

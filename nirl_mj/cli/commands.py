@@ -85,13 +85,14 @@ def _summary(trajectories: list, summary: dict) -> dict | None:
     return pred
 
 
-def _check_output(path: str | Path, overwrite: bool) -> Path:
-    """Fails before any work if ``path`` cannot be written or would overwrite results."""
+def _check_output(path: str | Path, overwrite: bool, flag: str = "--out") -> Path:
+    """Fails before any work if ``path`` (given as ``flag``) cannot be written or would overwrite
+    results."""
     path = Path(path)
     if path.is_dir():
-        raise IsADirectoryError(f"{path} is a directory; give a file path")
+        raise IsADirectoryError(f"{flag} {path} is a directory; give a file path")
     if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass --overwrite to replace it, or choose another --out")
+        raise FileExistsError(f"{path} exists; pass --overwrite to replace it, or choose another {flag}")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise FileNotFoundError(f"cannot write {path}: directory {parent} does not exist")
@@ -114,7 +115,7 @@ def _check_rerun(args: argparse.Namespace, *kept: str | Path) -> Path | None:
         raise ValueError(
             f"--rerun {path} is also a file this command writes: give the recording another name"
         )
-    return _check_output(path, args.overwrite)
+    return _check_output(path, args.overwrite, "--rerun")
 
 
 def _task(args: argparse.Namespace):
@@ -268,6 +269,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
 def cmd_teleop(args: argparse.Namespace) -> int:
     from nirl_mj.experts import teleop  # opens MuJoCo's viewer: only when asked
 
+    teleop.require_display()  # before the key table is printed
     out = _check_output(args.out, args.overwrite)  # a bad --out is refused before the lock beside it
     with DirectoryLock(out, "teleop"):  # one writer of the dataset file
         return _teleop(args, teleop, out)
@@ -347,18 +349,28 @@ def cmd_rl(args: argparse.Namespace) -> int:
 
     from nirl_mj.experiments.rl import ADVERSARIAL, train_rl
 
+    out = RunDir(args.out)
+    if args.resume:
+        if not out.is_run:
+            raise RunError(f"nothing to resume in {args.out}: no run of nirl-mj rl there; train one "
+                           "without --resume")  # fmt: skip
+        saved = out.read_record()
+        if saved.get("kind") != "rl":
+            raise RunError(f"{args.out} holds a run of `nirl-mj train`, not of `nirl-mj rl`: resume it with "
+                           f"`nirl-mj train --out {args.out} --resume`")  # fmt: skip
+        if args.task or args.set:
+            raise SpecError("--resume continues with the run's task; --task and --set cannot change it")
+        spec = specs.from_dict(saved["task"], str(out.file(RUN_FILE)))
+        # what is not given is the run's own (a different one is refused by train_rl, by name)
+        args.algo, args.demos = args.algo or saved["algo"], args.demos or saved.get("demos")
+        args.seed = saved["seed"] if args.seed is None else args.seed
+        args.steps = args.steps or saved["steps"]
+    else:
+        spec = _task(args)
+        args.algo, args.seed, args.steps = args.algo or "ppo", args.seed or 0, args.steps or 50_000
     if (args.algo in ADVERSARIAL) != bool(args.demos):
         raise SpecError(f"--demos goes with --algo gail or airl (the demonstrations they imitate); got "
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
-    out = RunDir(args.out)
-    spec = _task(args)
-    if args.resume and out.is_run and out.read_record().get("kind") != "rl":
-        raise RunError(f"{args.out} holds a run of `nirl-mj train`, not of `nirl-mj rl`: resume it with "
-                       f"`nirl-mj train --out {args.out} --resume`")  # fmt: skip
-    if args.resume:
-        spec = specs.from_dict(out.read_record()["task"], str(out.file(RUN_FILE)))
-        if args.task or args.set:
-            raise SpecError("--resume continues with the run's task; --task and --set cannot change it")
     done = out.read_record().get("steps_done", 0) if args.resume else 0
     with _bar(args, args.steps, "decision", initial=min(done, args.steps)) as bar:
 
@@ -394,6 +406,11 @@ def _config_overrides(assignments: list[str]) -> dict:
 def _subject(args: argparse.Namespace) -> Subject:
     """A run's policy (``--run``) or a reference policy (``--policy``), for ``eval`` and ``render``."""
     demos, train_seed = getattr(args, "demos", None), getattr(args, "train_seed", None)
+    if args.policy and args.which is not None:
+        raise SpecError(
+            f"--which chooses among a run's policies; --policy {args.policy} is one: leave out --which"
+        )
+    args.which = args.which or "selected"
     if train_seed is not None and args.policy != "bc":
         raise SpecError(f"--train-seed is the training seed of --policy bc; it has no use with "
                         f"{f'--policy {args.policy}' if args.policy else '--run'}: leave it out")  # fmt: skip
@@ -484,6 +501,12 @@ def _backend(args: argparse.Namespace, saved: dict | None = None) -> Backend:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    for flag, value, owner, default in (("--arenas", args.arenas, "paths", 4),
+                                        ("--snapshots", args.snapshots, "montage", 5)):  # fmt: skip
+        if value is not None and not getattr(args, owner):
+            raise video.RenderError(f"{flag} sets --{owner}'s figure; without --{owner} it has no use: "
+                                    "leave it out")  # fmt: skip
+        setattr(args, flag[2:], default if value is None else value)
     outputs = [Path(p) for p in (args.out, args.montage, args.paths) if p]
     if not outputs:
         raise video.RenderError(
@@ -497,8 +520,9 @@ def cmd_render(args: argparse.Namespace) -> int:
         if path and Path(path).suffix.lower() != suffix:  # what is written: an MP4 video, PNG images
             raise video.RenderError(f"{flag} {path}: {flag} writes {suffix} (for example "
                                     f"{Path(path).with_suffix(suffix).name})")  # fmt: skip
-    for path in outputs:
-        _check_output(path, args.overwrite)
+    for flag, (path, _) in written.items():
+        if path:
+            _check_output(path, args.overwrite, flag)
     with contextlib.ExitStack() as held:
         for path in outputs:  # one writer of each file
             held.enter_context(DirectoryLock(path, "render"))
@@ -571,6 +595,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     def start(total: int, done: int) -> None:
         log(f"{total} cells, {done} already finished in {out}; executor {args.executor}")
         bars.append(_bar(args, total, "cell", initial=done, desc=experiment.name))
+        bars[0].refresh()  # drawn now, 0/N with its clock: the first cell may take long
 
     def done(cell_id: str, result, failure) -> None:
         bars[0].update()

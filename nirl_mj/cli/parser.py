@@ -148,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = _command(sub, "run", c.cmd_run, "the main job: demonstrations, NIRL, held-out evaluation next to the "
                  "references, report", "json", "quiet", OVERWRITE_RERUN,
                  "rerun=a copy of RUN_DIR/run.rrd (always written)")
-    p.set_defaults(interrupted="finished stages are kept: continue with nirl-mj run --out {out} --resume")
+    p.set_defaults(interrupted="finished stages are kept: continue with {again}")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
     p.add_argument("--seed", type=_seed, default=0)
@@ -209,9 +209,11 @@ def build_parser() -> argparse.ArgumentParser:
                  "reference), or GAIL/AIRL (PPO on a discriminator's reward, from --demos) "
                  "(needs nirl-mj[gym]; resumable)", "quiet", "overwrite")
     p.set_defaults(interrupted="checkpoints are kept: continue with nirl-mj rl --out {out} --resume")
-    p.add_argument("--algo", choices=ALGOS, default="ppo")
-    p.add_argument("--demos", help="gail and airl: the demonstrations to imitate (a dataset path)")
-    p.add_argument("--steps", type=_positive_int, default=50_000, help="decisions to train (default: 50000)")
+    p.add_argument("--algo", choices=ALGOS, default=None, help="default: ppo; a resume: the run's")
+    p.add_argument("--demos", help="gail and airl: the demonstrations to imitate (a dataset path; a resume: "
+                   "the run's)")  # fmt: skip
+    p.add_argument("--steps", type=_positive_int, default=None,
+                   help="decisions in all (default: 50000; a resume: the run's, or more)")  # fmt: skip
     p.add_argument("--selection", choices=SELECTIONS, default=None,
                    help="how the checkpoint handed to tests is chosen (default: demo_balanced for gail and "
                         "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
@@ -220,7 +222,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--train-drive", choices=DRIVES, default=None,
                    help="the drive of the training episodes (default: the task's; a resume: the run's); "
                         "validation and tests drive the task's, as NIRL's train_drive")
-    p.add_argument("--seed", type=_seed, default=0, help="training seed (network, arenas)")
+    p.add_argument("--seed", type=_seed, default=None,
+                   help="training seed (network, arenas; default: 0; a resume: the run's)")  # fmt: skip
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
@@ -237,8 +240,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --policy bc: its training seed (default: 0)")  # fmt: skip
     p.add_argument("--tests", type=_positive_int, default=100)
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas")
-    p.add_argument("--which", default="selected", metavar="selected|last|N",
-                   help="the selected policy, the last one, or the one of iteration N")  # fmt: skip
+    p.add_argument("--which", default=None, metavar="selected|last|N",
+                   help="with --run: the selected policy (default), the last, or iteration N's")  # fmt: skip
 
     p = _command(sub, "render", c.cmd_render, "render an episode of a run's (or a reference) policy "
                  "offscreen: "
@@ -248,18 +251,19 @@ def build_parser() -> argparse.ArgumentParser:
     who.add_argument("--policy", choices=sorted(POLICIES), help="a reference policy instead of a run")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas (as for eval)")
     p.add_argument("--episode", type=int, default=0, help="which test arena (0 = eval's first)")
-    p.add_argument("--which", default="selected", help="selected, last or an iteration number")
+    p.add_argument("--which", default=None,
+                   help="with --run: selected (default), last or an iteration number")  # fmt: skip
     p.add_argument("--out", help="MP4 video of the episode")
     p.add_argument("--montage", metavar="FILE.png", help="strip of snapshots of the episode (Fig. 8)")
-    p.add_argument("--snapshots", type=_positive_int, default=5, help="frames in --montage")
+    p.add_argument("--snapshots", type=_positive_int, default=None, help="frames in --montage (default: 5)")
     p.add_argument("--paths", metavar="FILE.png", help="whole paths in several test arenas (Fig. 5)")
-    p.add_argument("--arenas", type=_positive_int, default=4, help="arenas in --paths")
+    p.add_argument("--arenas", type=_positive_int, default=None, help="arenas in --paths (default: 4)")
     p.add_argument(
         "--camera", default="top", help="top (whole arena, default), follow (12 m above the robot) or chase"
     )
     p.add_argument("--width", type=_positive_int, default=640, help="pixels (even, <= 1280)")
     p.add_argument("--height", type=_positive_int, default=480, help="pixels (even, <= 960)")
-    p.add_argument("--fps", type=float, default=10.0,
+    p.add_argument("--fps", type=_number(float, 1e-9, float("inf"), "a frame rate > 0"), default=10.0,
                    help="video frames per second of simulated time; plays at real time")  # fmt: skip
     p.add_argument("--overlay", action=argparse.BooleanOptionalAction, default=True,
                    help="draw time, step, action and danger levels onto the video")  # fmt: skip

@@ -35,20 +35,43 @@ class DirectoryLock:
         self.wait = wait
         self.lock_file = self.path.parent / f".{self.path.name}.lock"
         self._fd: int | None = None
+        self._made: list[Path] = []  # the folders the lock file needed, deepest first
 
     def acquire(self) -> DirectoryLock:
         try:
-            self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+            missing = self.lock_file.parent
+            while not missing.exists():
+                self._made.append(missing)
+                missing = missing.parent
             return self._acquire()
         except PermissionError as exc:
+            self._remove_made()
             raise PermissionError(
                 f"cannot write {self.path}: its lock {self.lock_file} (in the output's "
                 f"parent directory) cannot be written: {exc.strerror}"
             ) from None
+        except BaseException:
+            self._remove_made()
+            raise
+
+    def _remove_made(self) -> None:
+        """Removes the folders made for the lock file while they are empty (a command refused under the
+        lock leaves none behind; an output written there keeps them)."""
+        for folder in self._made:
+            try:
+                folder.rmdir()
+            except OSError:
+                break
+        self._made = []
 
     def _acquire(self) -> DirectoryLock:
         while True:
-            fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
+            # again each time: a releasing holder may have removed the folders it made for the lock
+            self.lock_file.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                fd = os.open(self.lock_file, os.O_RDWR | os.O_CREAT, 0o644)
+            except FileNotFoundError:  # removed between the two calls: make it again
+                continue
             try:
                 if self._take(fd):
                     os.ftruncate(fd, 0)
@@ -96,6 +119,7 @@ class DirectoryLock:
             fcntl.flock(self._fd, fcntl.LOCK_UN)
             os.close(self._fd)
             self._fd = None
+        self._remove_made()
 
     def __enter__(self) -> DirectoryLock:
         return self.acquire()

@@ -388,6 +388,9 @@ def from_dict(
     overrides = _table(data.get("quick", {}), f"{source}: quick")
     _known(overrides, [k for k in KEYS[kind] if k not in ("kind", "quick")], f"{source}: quick", "")
     full_methods = data.get("methods", ["NIRL"])
+    if quick and "quick" not in data:  # else --quick would run the full protocol under a -quick name
+        raise ExperimentError(f"{source} has no [quick] table, whose values --quick takes: run it without "
+                              "--quick (or --runs 1), or give it one (docs/EXPERIMENTS.md)")  # fmt: skip
     if quick:
         data = _merge(data, overrides)
     quick_keys = data.get("quick", {}) if quick else {}

@@ -4,7 +4,9 @@ Each DIR is the output of ``nirl-mj compare`` or ``nirl-mj suite`` (its ``experi
 tidy rows: ``rows.csv``, ``suite.csv``, or for a comparison written before ``rows.csv`` existed the
 cells of its ``results.json``). The directories must share the protocol (:data:`PROTOCOL`: the same
 tasks, seeds, tests, test domain, demonstrations and axes, hence the same test arenas run by run);
-a method found in two of them must be the same computation (its identity), and is taken once.
+a method found in two of them must be the same computation (its identity), and is taken once, from
+the first (the runs on which the two differ, as the same computation may on another machine, are
+listed under the table).
 Outputs in OUT: ``leaderboard.md`` (per point, the methods ranked by average success with its 95 %
 t interval, SPL, SCT, runs, what each reads, a reference in bold, and source), ``leaderboard.csv``
 (the merged tidy rows) and ``leaderboard.png`` (the same as bars with their intervals).
@@ -13,6 +15,7 @@ t interval, SPL, SCT, runs, what each reads, a reference in bold, and source), `
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from nirl_mj.data.atomic import leftover_temporaries, write_figure, write_text
@@ -83,13 +86,16 @@ def recorded_reads(path: str | Path) -> dict[str, list[str]]:
             if isinstance(words, list) and all(isinstance(w, str) for w in words)}  # fmt: skip
 
 
-def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str], dict[str, list[str] | None]]:
-    """The merged tidy rows of ``dirs``, each method's source directory, and what each method reads
-    (:func:`recorded_reads`, from the first directory that records it; None if none does); refuses
+def merge(
+    dirs: list[str | Path],
+) -> tuple[list[dict], dict[str, str], dict[str, list[str] | None], list[str]]:
+    """The merged tidy rows of ``dirs``, each method's source directory, what each method reads
+    (:func:`recorded_reads`, from the first directory that records it; None if none does), and the
+    runs on which two directories' same computation disagrees (:func:`_disagreements`); refuses
     directories of another protocol and a method name that means two computations."""
     if not dirs:
         raise ExperimentError("leaderboard: give at least one output directory")
-    rows, source, methods, reads = [], {}, {}, {}
+    rows, source, methods, reads, notes = [], {}, {}, {}, []
     first_dir, first = None, None
     for d in dirs:
         identity, found = read_dir(d)
@@ -112,30 +118,36 @@ def merge(dirs: list[str | Path]) -> tuple[list[dict], dict[str, str], dict[str,
                                       "differ): rename one of them in its experiment file")  # fmt: skip
             if reads.get(name) is None:
                 reads[name] = recorded.get(name)
-            if name in methods:  # the same computation: taken from the first directory, if it agrees
+            if name in methods:  # the same computation: taken from the first directory
                 mine = [r for r in found if r["method"] == name]
-                _same_runs(name, [r for r in rows if r["method"] == name], mine, source[name], str(d))
+                notes += _disagreements(
+                    name, [r for r in rows if r["method"] == name], mine, source[name], str(d)
+                )
                 continue
             methods[name], source[name] = m, str(d)
             rows += [r for r in found if r["method"] == name]
-    return rows, source, reads
+    return rows, source, reads, notes
 
 
-def _same_runs(name: str, kept: list[dict], other: list[dict], first: str, second: str) -> None:
-    """Refuses two directories whose cells of one method (one identity) disagree on a run they both
-    hold: a method changed without a change of identity (a plugin edited and not reinstalled, ...)."""
+def _disagreements(name: str, kept: list[dict], other: list[dict], first: str, second: str) -> list[str]:
+    """Where two directories' rows of one method (one identity) differ on a run both hold, beyond the
+    CSV's 6 digits: one line each, naming the columns and both values. The same computation on
+    another machine can end elsewhere (floating point); the first directory's row is the one kept."""
     where = ("axis", "value", "run")
     held = {tuple(r[k] for k in where): r for r in kept}
+    notes = []
     for r in other:
         mine = held.get(tuple(r[k] for k in where))
-        if mine is not None and any(mine[k] != r[k] for k in tidy.COLUMNS if k not in ("suite", *where)):
+        if mine is None:
+            continue
+        measured = [k for k in ("tests", *tidy.RATES) if None not in (mine[k], r[k])]
+        differ = [k for k in measured if not math.isclose(mine[k], r[k], rel_tol=1e-5, abs_tol=1e-9)]
+        if differ:
             point = f" at {r['axis']}={r['value']}" if r["axis"] else ""
-            raise ExperimentError(
-                f"method {name}, run {r['run']}{point}: "
-                f"{first} and {second} record the same computation with other results (success "
-                f"{mine['success']} against {r['success']}): one of them was computed by other code; "
-                "recompute it, or leave one directory out"
-            )
+            values = ", ".join(f"{k} {mine[k]:.6g} against {r[k]:.6g}" for k in differ)
+            notes.append(f"{name}, run {r['run']}{point}: `{first}` and `{second}` hold other results of "
+                         f"the same computation ({values}); `{first}`'s is taken")  # fmt: skip
+    return notes
 
 
 def points(rows: list[dict]) -> list[dict]:
@@ -210,14 +222,14 @@ def write_leaderboard(
 ) -> tuple[str, list[Path]]:
     """Merges ``dirs`` into OUT (module docstring); returns the Markdown table and the files written.
     OUT must be new, empty, or (with ``overwrite``) an earlier leaderboard's."""
-    rows, source, reads = merge(list(dirs))
+    rows, source, reads, notes = merge(list(dirs))
     if not rows:
         raise ExperimentError(
             f"{', '.join(map(str, dirs))}: no finished run to rank (run the experiments first)"
         )
     out = Path(out)
     with DirectoryLock(out, "leaderboard"):  # one writer of OUT (taken once the sources are read)
-        return _write(out, dirs, overwrite, rows, source, reads)
+        return _write(out, dirs, overwrite, rows, source, reads, notes)
 
 
 def _write(
@@ -227,6 +239,7 @@ def _write(
     rows: list[dict],
     source: dict[str, str],
     reads: dict[str, list[str] | None],
+    notes: list[str],
 ) -> tuple[str, list[Path]]:
     """:func:`write_leaderboard`'s checks of OUT and its files, under OUT's lock."""
     if out.exists():
@@ -243,6 +256,11 @@ def _write(
     out.mkdir(parents=True, exist_ok=True)
     summary = points(rows)
     table = markdown(summary, source, reads)
+    if notes:
+        table += (
+            "\n\n**Runs on which the merged directories disagree** (the same method and identity):\n\n"
+            + ("\n".join(f"- {note}" for note in notes))
+        )
     write_text(out / "leaderboard.md", f"# Leaderboard\n\nFrom: {', '.join(f'`{d}`' for d in dirs)}. Success "
                "averaged over each method's runs (95 % Student-t interval); the directories share their "
                f"protocol and test arenas.\n\n{table}\n\n![leaderboard](leaderboard.png)\n")  # fmt: skip

@@ -6,8 +6,9 @@ A package adds a method by naming an object in its ``pyproject.toml``::
     KNN = "knn_method:KNN"
 
 ``KNN`` is then a method name like ``NIRL`` in every experiment file (``methods = ["NIRL", "KNN"]``)
-and suite. The object (a class, instantiated with the method's ``settings`` as keyword arguments,
-or an instance) has, in plain Python, NumPy and Gymnasium types (docs/EXTENDING.md):
+and suite. The object (a class or a factory function, called with the method's ``settings`` as
+keyword arguments, or an instance, which takes none) has, in plain Python, NumPy and Gymnasium
+types (docs/EXTENDING.md):
 
 - ``reads``: what it reads, words of ``nirl_mj.experiments.reads.VOCABULARY`` (a learner from
   demonstrations: ``["demonstrations", "features", "episode_end"]``, or without ``episode_end`` if
@@ -36,6 +37,7 @@ from __future__ import annotations
 import functools
 import inspect
 import os
+import sys
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
@@ -98,11 +100,14 @@ def source_digest(name: str) -> str:
     point (every ``.py`` file of its top-level package, or its one module): in the method's identity,
     so that code edited under an unchanged version (an editable install) is another computation."""
     import hashlib
-    from importlib.machinery import PathFinder
 
     top = provider(name).module.partition(".")[0]
-    try:  # on the import path as a new process finds it (not an earlier import's, in sys.modules)
-        spec = PathFinder.find_spec(top)
+    try:  # as a new process finds it (not an earlier import's, in sys.modules): the import path, or
+        # an editable install's import hook
+        spec = next(
+            (found for finder in sys.meta_path if hasattr(finder, "find_spec")
+             if (found := finder.find_spec(top, None)) is not None), None
+        )  # fmt: skip
     except (ImportError, ValueError) as exc:
         raise MethodError(f"method {name!r}: its module {top!r} cannot be found: {exc}") from None
     if spec is None:
@@ -335,7 +340,8 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
         raise  # the protocol's refusals, and what another attempt may not meet again, as they are
     except Exception as exc:
         # the method's own error: its cell is seeded, so another attempt fails the same way (not retried)
-        hint = " (its reads hold no demonstrations: it was given None)" if given is None else ""
+        undeclared = given is None and isinstance(exc, TypeError) and "NoneType" in str(exc)
+        hint = " (demonstrations=None: they are not in its reads)" if undeclared else ""
         raise MethodError(f"method {job.method.name!r}: train() raised {type(exc).__name__}: {exc}{hint}; "
                           "its traceback is in the failure's record") from exc  # fmt: skip
     finally:

@@ -36,6 +36,7 @@ import json
 import os
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -386,7 +387,7 @@ def train_rl(
         config["discriminator"] = adv.variant_of(algo).settings()
     validation_arenas = config.get("validation_arenas", VALIDATION_ARENAS)
     record = {"kind": "rl", "algo": algo, "config": config, "steps": steps,
-              "task": task.to_dict(), "seed": seed, "demos": str(demos) if adversarial else None,
+              "task": task.to_dict(), "seed": seed, "demos": _demos_name(demos) if adversarial else None,
               "demo_seeds": sorted({t.arena_seed for t in trajectories}),
               "validation_seeds": domain_seeds("validation", seed, validation_arenas)
               if selection == "validation_success" else [],
@@ -394,6 +395,9 @@ def train_rl(
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
     if resume:
         saved = run.read_record()
+        if adversarial and _demos_name(saved.get("demos") or "") != record["demos"]:
+            raise RunError(f"{run} imitated other demonstrations ({saved.get('demos')}); resume with those, "
+                           "or train in a new --out")  # fmt: skip
         for key in ("kind", "config", "task", "seed"):
             if saved.get(key) != record[key]:
                 raise RunError(f"{run} was trained with another {key}; resume with the same options, "
@@ -492,6 +496,13 @@ def train_rl(
     finally:
         venv.close()
     return record
+
+
+def _demos_name(demos: str | os.PathLike) -> str:
+    """Demonstrations as a run records them: ``minari:ID``, or a dataset file's absolute path (so that a
+    resume from another directory finds the same file)."""
+    text = str(demos)
+    return text if text.startswith("minari:") or not text else str(Path(text).resolve())
 
 
 def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps, outcomes: list[bool]) -> Any:

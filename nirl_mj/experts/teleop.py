@@ -106,6 +106,15 @@ def display_available() -> bool:
     )
 
 
+def require_display() -> None:
+    """Refuses, in one line, where no window can open."""
+    if not display_available():
+        raise RuntimeError(
+            "teleop needs a display (DISPLAY is not set): run it on a desktop or with `ssh -X`; "
+            "for demonstrations on a headless machine use `nirl-mj demos`"
+        )
+
+
 class _ViewerAgent:
     """The human at the viewer as an :class:`~nirl_mj.sim.episode.Agent`: waits for the next
     key while keeping the window live; a command key or a closed window gives no action,
@@ -145,11 +154,7 @@ def teleoperate(
     passed to ``on_trajectory``. Returns the number kept. Closing the window
     ends the session.
     """
-    if not display_available():
-        raise RuntimeError(
-            "teleop needs a display (DISPLAY is not set): run it on a desktop or with `ssh -X`; "
-            "for demonstrations on a headless machine use `nirl-mj demos`"
-        )
+    require_display()
     import mujoco.viewer
 
     from nirl_mj.sim.episode import EpisodeAbandoned, run_episode

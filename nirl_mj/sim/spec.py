@@ -393,14 +393,25 @@ def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
     if path.suffix != ".toml":
         named = TASKS_DIR / f"{task}.toml"
         if not named.is_file():
-            available = sorted(p.stem for p in TASKS_DIR.glob("*.toml"))
+            available = sorted(p.stem for p in TASKS_DIR.glob("*.toml") if "kind" not in _quiet_toml(p))
             raise SpecError(
                 f"unknown task {str(task)!r}: give a path to a .toml file or one of: {', '.join(available)}"
             )
         path = named
     data = read_toml(path, "task file", SpecError)
+    if "kind" in data:  # an experiment file (compare, sweep, suite) that names its task
+        raise SpecError(f"{path} is an experiment (kind = {data['kind']!r}), not a task: run it with "
+                        f"`nirl-mj {data['kind']} --task {path}`; its task is its `task = ...`")  # fmt: skip
     data.setdefault("name", path.stem)
     return from_dict(data, str(path))
+
+
+def _quiet_toml(path: Path) -> dict[str, Any]:
+    """A TOML file's contents, or {} if it cannot be read (for a list of names, never an error)."""
+    try:
+        return tomllib.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return {}
 
 
 def shipped_path(path: str | Path) -> Path:
