@@ -57,6 +57,29 @@ def test_video_frames_size_motion_and_timing(tmp_path, camera, overlay):
     np.testing.assert_array_equal(result.trajectory.actions, plain.actions)
 
 
+def test_a_frame_at_a_decision_names_the_action_chosen_there(tmp_path, monkeypatch):
+    """One frame per decision (fps = 1 / period): frame k shows step k, phi(s_k) and a_k, as the Rerun
+    recording pairs them; the last frame the outcome."""
+    from nirl_mj.data.features import ACTION_NAMES
+    from nirl_mj.inspect import video
+
+    shown = []
+
+    def spy(frame, lines, phi, box=None):
+        shown.append((list(lines), None if phi is None else np.array(phi)))
+        return frame
+
+    monkeypatch.setattr(video, "draw_overlay", spy)
+    task = tiny_task()
+    result = record_video(task, rule_policy, 7, tmp_path / "e.mp4", "top", 160, 120, fps=2.0, overlay=True)
+    t = result.trajectory
+    assert len(shown) == len(t) + 1
+    for k, (lines, phi) in enumerate(shown[:-1]):
+        assert lines[1:] == [f"step {k}", ACTION_NAMES[int(t.actions[k])]], (k, lines)
+        np.testing.assert_array_equal(phi, t.features[k])
+    assert shown[-1][0][2] == t.outcome
+
+
 def test_the_follow_camera_looks_straight_down_with_north_up():
     # as the top view and Rerun's arena show it: image right is east (+x), image up is north (+y)
     import mujoco
@@ -96,6 +119,36 @@ def test_top_view_keeps_the_arena_clear_of_overlays():
     columns = np.flatnonzero(changed.any(axis=0))
     assert columns.min() >= 480 and columns.max() < 640  # text and all seven bars fit the panel
     assert changed[:, 480:].sum() > 500
+
+
+@pytest.mark.parametrize("width, height", [(480, 640), (320, 240), (640, 480), (1280, 960)])
+def test_the_overlay_fits_its_panel_whatever_the_frame(width, height):
+    """Sized from the panel, not from the frame's height alone: all seven bars and V, I inside it (a
+    level-7 bar is the danger colour 7; V and I the lowest text)."""
+    from nirl_mj.inspect.video import DANGER_COLOURS
+
+    box = panel_box("top", width, height)
+    frame = np.zeros((height, width, 3), np.uint8)
+    drawn = draw_overlay(frame, ["t 12.50 s", "step 25", "right60"], np.full(16, 7, np.float32), box)
+    changed = drawn.max(axis=-1) > 0
+    x0, y0, x1, y1 = box
+    assert not changed.sum() - changed[y0:y1, x0:x1].sum()  # nothing outside the panel
+    red = np.all(drawn == np.asarray(DANGER_COLOURS[7], np.uint8), axis=-1)
+    bar_columns = np.flatnonzero(red.any(axis=0))
+    # seven separate bars: six gaps between runs of bar columns
+    assert (np.diff(bar_columns) > 1).sum() == 6, bar_columns
+    rows = np.flatnonzero(changed.any(axis=1))
+    assert rows.max() > np.flatnonzero(red.any(axis=1)).max() + 5  # the labels and V, I below the bars
+
+
+def test_a_panel_too_small_for_the_overlay_gives_the_corner_instead():
+    frame = np.zeros((120, 160, 3), np.uint8)  # the panel beside the arena: 40 px wide
+    drawn = draw_overlay(frame, ["t 1.00 s", "step 2", "forward"], np.full(16, 7, np.float32),
+                         panel_box("top", 160, 120))  # fmt: skip
+    from nirl_mj.inspect.video import DANGER_COLOURS
+
+    red = np.all(drawn == np.asarray(DANGER_COLOURS[7], np.uint8), axis=-1)
+    assert (np.diff(np.flatnonzero(red.any(axis=0))) > 1).sum() == 6  # all seven bars
 
 
 def test_snapshot_strip_and_paths_montage(tmp_path):

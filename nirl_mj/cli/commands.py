@@ -562,7 +562,15 @@ def _render(args: argparse.Namespace) -> int:
         print(
             "wrote "
             + str(
-                video.paths_montage(env, subject.policy, seeds, args.paths, *frame, overwrite=args.overwrite)
+                video.paths_montage(
+                    env,
+                    subject.policy,
+                    seeds,
+                    args.paths,
+                    *frame,
+                    overwrite=args.overwrite,
+                    first_index=args.episode,
+                )  # fmt: skip
             )
         )
     return 0

@@ -282,17 +282,31 @@ def draw_overlay(
     nothing else) or, without one, semi-transparent into the top-left corner: in a top view that
     corner holds neither the start (bottom left) nor the target (top right)."""
     image = Image.fromarray(frame)
-    h = frame.shape[0]
-    size = max(10, h // 32)
-    font = _font(size)
     draw = ImageDraw.Draw(image, "RGBA")
+
+    def extent(size: int) -> tuple[float, float]:
+        """The block's width and height (pixels) in a font of ``size`` pixels."""
+        text_w = max((draw.textlength(t, font=_font(size)) for t in lines), default=0)
+        width = max(text_w, 7 * (size + 4) if phi is not None else 0) + 2 * (size // 2)
+        height = len(lines) * (size + 4) + (3 * size + 3 * (size + 4) + size // 2 if phi is not None else 0)
+        return width, height + size // 2
+
+    size = max(10, frame.shape[0] // 32)
+    if box is not None:  # as large as the frame suggests, as small as the panel needs (down to 6 px)
+
+        def fits(s: int) -> bool:
+            width, height = extent(s)
+            return width <= box[2] - box[0] and height <= box[3] - box[1]
+
+        size = next((s for s in range(size, 5, -1) if fits(s)), None)
+        if size is None:  # a panel too small for it: the corner of the frame instead
+            box, size = None, next((s for s in range(10, 5, -1) if extent(s)[0] <= frame.shape[1]), 6)
+    font = _font(size)
     pad = size // 2
     line_h = size + 4
     left, top = (box[0], box[1]) if box else (0, 0)
     bar_w, bar_h = size, 3 * size
-    text_w = max((draw.textlength(t, font=font) for t in lines), default=0)
-    width = max(text_w, 7 * (bar_w + 4) if phi is not None else 0) + 2 * pad
-    height = len(lines) * line_h + (bar_h + 3 * line_h + pad if phi is not None else 0) + pad
+    width, height = extent(size)
     if box is None and (lines or phi is not None):
         draw.rectangle((left, top, left + width, top + height), fill=(0, 0, 0, 150))
     for i, text in enumerate(lines):
@@ -399,19 +413,17 @@ class _VideoEpisode:
 
     def act(self, timestep: Any) -> int:
         self._action = int(self.policy(timestep.observation["features"]))
+        # the frame at a decision: state s_k beside the action a_k chosen there (as Rerun logs them)
+        self._capture()
         return self._action
 
     def _on_step(self, step: int, timestep: Any, action: int | None) -> None:
         self._trail.append(timestep.observation["pose"][:2].copy())
         self._phi = timestep.observation["features"]
-        if step == 0:
-            self._capture(force=True)
-            self.env.task.command_hook = lambda physics: self._capture()
-            return
         self._step = step
         self.view.trail = np.asarray(self._trail)
-        if not timestep.last():
-            self._capture()
+        if step == 0:  # frames between decisions: during a_k, from the physics steps
+            self.env.task.command_hook = lambda physics: self._capture()
 
     def _capture(self, force: bool = False) -> None:
         now = float(self.env.physics.data.time)
@@ -525,10 +537,12 @@ def paths_montage(
     height: int = 360,
     columns: int | None = None,
     overwrite: bool = False,
+    first_index: int = 0,
 ) -> Path:
     """Writes a PNG of ``policy``'s whole path in each arena of ``seeds`` (the paper's Fig. 5):
     the final state from ``camera`` with the path coloured by outcome (green target, red
-    collision, orange timeout), labelled with the arena index, outcome and decisions; up to
+    collision, orange timeout), labelled with the arena's index (``first_index`` for the first of
+    ``seeds``: ``render --episode K`` labels test arenas K, K+1, ...), outcome and decisions; up to
     ``columns`` (default: at most 4) frames per row. Returns the PNG's path."""
     check_frame(camera, width, height)
     if not seeds:
@@ -543,6 +557,6 @@ def paths_montage(
         trajectory = run_episode(env, agent, seed)
         view.trail = trajectory.poses[:-1, :2]
         view.trail_rgba = _OUTCOME_RGBA[trajectory.outcome]
-        text = f"arena {k}: {trajectory.outcome}, {len(trajectory)} steps"
+        text = f"arena {first_index + k}: {trajectory.outcome}, {len(trajectory)} steps"
         images.append(_label(view.scene(), text))
     return _save_png(_tile(images, columns or min(4, len(images))), out, overwrite)
