@@ -140,6 +140,34 @@ def test_bad_input_is_a_clear_error():
         gymnasium.make("nirl_mj/Navigate-v0", observation="phi")
     with pytest.raises(ValueError, match="no_such_task"):
         gymnasium.make("nirl_mj/Navigate-v0", task="no_such_task")
+    for size in ({"width": 0}, {"height": "480"}, {"width": 1920, "height": 1080}):
+        with pytest.raises(ValueError, match=r"accepted: a whole number of pixels in 1\.\.(1280|960)"):
+            gymnasium.make("nirl_mj/Navigate-v0", render_mode="rgb_array", **size)
+
+
+def test_rendering_in_a_worker_forked_after_the_parent_rendered_is_refused_not_hung():
+    import multiprocessing
+
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL, render_mode="rgb_array", width=64, height=48)
+    env.reset(seed=0)
+    env.render()
+
+    def child(queue):
+        worker = gymnasium.make("nirl_mj/Navigate-v0", set=SMALL, render_mode="rgb_array", width=64, height=8)
+        worker.reset(seed=0)
+        try:
+            worker.render()
+            queue.put("rendered")
+        except RuntimeError as exc:
+            queue.put(str(exc))
+
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    process = context.Process(target=child, args=(queue,))
+    process.start()
+    answer = queue.get(timeout=120)
+    process.join(timeout=60)
+    assert "start the workers with spawn" in answer
 
 
 def test_the_core_package_imports_and_runs_without_gymnasium():
@@ -306,6 +334,15 @@ def test_an_expert_drives_a_vector_environment_as_it_drives_each_one():
         assert taken[i] == run_episode(dm, make_expert("sensor"), seed).actions.tolist()[:6]
     with pytest.raises(ValueError, match="one ExpertPolicy per environment"):
         ExpertPolicy("planner", env=envs.envs[0])(obs)
+    with pytest.raises(ValueError, match="one ExpertPolicy per environment"):  # given the vector env itself
+        ExpertPolicy("planner", env=envs)
+    # the vector environment given: its task's kind of actions (continuous: float32 shares for a batch)
+    assert ExpertPolicy("sensor", env=envs)(envs.reset(seed=[5, 6])[0]).dtype.kind == "i"
+    continuous = gymnasium.make_vec("nirl_mj/Navigate-v0", num_envs=2, vectorization_mode="sync",
+                                    set=[*SMALL, "control.actions=continuous"])  # fmt: skip
+    shares = ExpertPolicy("sensor", env=continuous)(continuous.reset(seed=[5, 6])[0])
+    assert shares.shape == (2, 2) and shares.dtype == np.float32
+    continuous.step(shares)
 
 
 def test_an_environment_pickles_as_a_fresh_one_of_the_same_task():

@@ -34,11 +34,13 @@ import gymnasium
 import numpy as np
 
 from nirl_mj.gym.spaces import dict_space, space_of
+from nirl_mj.sim.arena import OFFSCREEN_SIZE
 from nirl_mj.sim.observations import NAMES
 from nirl_mj.sim.spec import SpecError, TaskSpec, apply_overrides, from_dict, load_task
 from nirl_mj.sim.task import Outcome, action_scale, make_env, share_twist
 
 CAMERAS = ("robotino/top", "robotino/chase", "overview")
+_RENDERED_IN: int | None = None  # the process that last rendered (a forked child inherits it)
 
 
 class NavigationEnv(gymnasium.Env):
@@ -90,6 +92,11 @@ class NavigationEnv(gymnasium.Env):
             raise SpecError(f"render_mode={render_mode!r}: accepted: None, 'rgb_array'")
         if camera not in CAMERAS:
             raise SpecError(f"camera={camera!r}: accepted: {', '.join(CAMERAS)}")
+        buffer_w, buffer_h = OFFSCREEN_SIZE
+        for name, value, most in (("width", width, buffer_w), ("height", height, buffer_h)):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= most:
+                raise SpecError(f"{name}={value!r}: accepted: a whole number of pixels in 1..{most} "
+                                f"(the offscreen buffer is {buffer_w} x {buffer_h})")  # fmt: skip
         # what pickling keeps: the task as resolved and the options (the simulation is rebuilt)
         self._init = {"task": spec.to_dict(), "observation": observation, "render_mode": render_mode,
                       "camera": camera, "width": width, "height": height}  # fmt: skip
@@ -164,8 +171,19 @@ class NavigationEnv(gymnasium.Env):
             gymnasium.logger.warn("render() without render_mode: make the environment with "
                                   "render_mode='rgb_array'")  # fmt: skip
             return None
+        global _RENDERED_IN
+        if _RENDERED_IN not in (None, os.getpid()):
+            # forked (Linux's default for process vector environments) from a process that rendered:
+            # the inherited EGL state would hang this call
+            raise RuntimeError(
+                "render() in a process forked from one that has rendered hangs MuJoCo's EGL context: start "
+                "the workers with spawn (gymnasium.make_vec(..., vector_kwargs={'context': 'spawn'}), "
+                "SubprocVecEnv(..., start_method='spawn'))"
+            )
         height, width, camera = self._frame
-        return self.dm_env.physics.render(height, width, camera_id=camera)
+        frame = self.dm_env.physics.render(height, width, camera_id=camera)
+        _RENDERED_IN = os.getpid()
+        return frame
 
     def close(self) -> None:
         """Frees the simulation; a second call does nothing."""

@@ -23,6 +23,7 @@ the bare phi(s) array (an environment made with ``observation="features"``).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import dm_env
 import numpy as np
@@ -32,6 +33,22 @@ from nirl_mj.experts.policies import POLICIES
 from nirl_mj.sim.drive import action_share
 
 _NEEDS_ENV = ("planner", "noisy")
+_PER_ENVIRONMENT = ("the {kind} expert reads its environment: for a vector environment make one ExpertPolicy "
+                    "per environment, each given its own env")  # fmt: skip
+
+
+def _task_of(env) -> tuple[Any, bool]:
+    """The task of ``env`` (None without one) and whether ``env`` is a vector environment (Gymnasium's
+    or Stable-Baselines3's: the task of its first environment; they share one)."""
+    if env is None:
+        return None, False
+    task = getattr(getattr(env, "unwrapped", None), "task_spec", None)
+    if task is not None:
+        return task, False
+    if hasattr(env, "get_attr"):
+        return env.get_attr("task_spec")[0], True
+    raise ValueError(f"env={type(env).__name__}: not a nirl_mj environment (gymnasium.make('nirl_mj/...')) "
+                     "or a vector environment of them")  # fmt: skip
 
 
 class ExpertPolicy:
@@ -50,12 +67,15 @@ class ExpertPolicy:
             raise ValueError(f"unknown expert {kind!r}: accepted: {', '.join(EXPERT_KINDS)}")
         if (kind in _NEEDS_ENV or options.get("base") == "planner") and env is None:
             raise ValueError(f"the {kind} expert reads the environment: give env=the Gymnasium environment")
+        task, vector = _task_of(env)
+        if vector and (kind in _NEEDS_ENV or options.get("base") == "planner"):
+            raise ValueError(_PER_ENVIRONMENT.format(kind=kind))
         self.kind = kind
         self._options = options
         self._expert = make_expert(kind, **options)
         self._batch: list = []
-        self._env = env
-        self._continuous = env is not None and env.unwrapped.task_spec.control.actions == "continuous"
+        self._env = None if vector else env
+        self._continuous = task is not None and task.control.actions == "continuous"
 
     def __call__(self, observation: Mapping[str, np.ndarray]) -> int | np.ndarray:
         if not isinstance(observation, Mapping) or "steps" not in observation:
@@ -78,8 +98,7 @@ class ExpertPolicy:
 
     def _act_batch(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
         if self.kind in _NEEDS_ENV or self._options.get("base") == "planner":
-            raise ValueError(f"the {self.kind} expert reads its environment: for a vector environment "
-                             "make one ExpertPolicy per environment, each given its own env")  # fmt: skip
+            raise ValueError(_PER_ENVIRONMENT.format(kind=self.kind))
         n = len(observation["steps"])
         while len(self._batch) < n:  # each environment's expert keeps its own memory between steps
             self._batch.append(make_expert(self.kind, **self._options))
@@ -99,7 +118,7 @@ def reference_policy(name: str, env=None):
     if name not in POLICIES:
         raise ValueError(f"unknown reference policy {name!r}: accepted: {', '.join(sorted(POLICIES))}")
     on_phi = POLICIES[name]
-    task = None if env is None else env.unwrapped.task_spec
+    task, _ = _task_of(env)
     continuous = task is not None and task.control.actions == "continuous"
 
     def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:

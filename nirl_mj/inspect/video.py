@@ -58,12 +58,13 @@ from nirl_mj.data.features import ACTION_NAMES, FEATURE_SENSORS  # noqa: E402
 from nirl_mj.data.trajectory import Trajectory  # noqa: E402
 from nirl_mj.experts.policies import PolicyAgent  # noqa: E402
 from nirl_mj.inspect.recording import DANGER_COLOURS  # noqa: E402
+from nirl_mj.sim.arena import OFFSCREEN_SIZE  # noqa: E402
 from nirl_mj.sim.episode import run_episode  # noqa: E402
 from nirl_mj.sim.spec import TaskSpec, load_task  # noqa: E402
 
 CAMERAS = ("top", "follow", "chase")
 """Camera names accepted everywhere in this module (see the module docstring)."""
-MAX_SIZE = (1280, 960)
+MAX_SIZE = OFFSCREEN_SIZE
 """Largest frame (width, height) in pixels: the arena model's offscreen buffer."""
 EGL_FIX = (
     "install the system packages libegl1 libegl-mesa0 libgl1-mesa-dri (Debian/Ubuntu: "

@@ -60,7 +60,9 @@ _PARKED_SIZE = 0.1  # m, any small positive size for unused slots
 _MARKER_HALF_HEIGHT = 0.002  # m: flat discs
 _START_MARKER_RADIUS = 1.0  # m
 _OVERVIEW_FOVY = 45.0  # degrees
-_OVERVIEW_ASPECT = 4.0 / 3.0  # matches the 1280 x 960 offscreen buffer
+OFFSCREEN_SIZE = (1280, 960)
+"""The offscreen buffer (width, height) in pixels: the largest frame any camera renders."""
+_OVERVIEW_ASPECT = OFFSCREEN_SIZE[0] / OFFSCREEN_SIZE[1]  # the overview fills the buffer
 
 # Contact bits (see module docstring).
 _OBSTACLE_CONTYPE, _OBSTACLE_CONAFFINITY = 1, 2
@@ -276,7 +278,7 @@ class NavigationArena(composer.Arena):
         root.visual.map.znear = 0.001  # relative to the extent: ~7 cm in a 100 m arena
         root.visual.quality.offsamples = 0
         glob = getattr(root.visual, "global")  # "global" is a Python keyword
-        glob.offwidth, glob.offheight = 1280, 960
+        glob.offwidth, glob.offheight = OFFSCREEN_SIZE
         # A fixed statistic keeps znear/zfar and the free camera independent of
         # where unused slots are parked.
         root.statistic.center = (width / 2, height / 2, 0.0)
