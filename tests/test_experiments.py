@@ -942,3 +942,31 @@ def test_reuse_takes_a_renamed_variant_with_the_same_learner_settings_under_the_
     assert main([*run, "--task", str(new_spec), "--out", str(tmp_path / "third"), "--reuse", str(new)]) == 0
     again = json.loads((tmp_path / "third" / "cells" / "NIRL-run000.json").read_text())
     assert again["reused_from"] == str(new.resolve()) and "reused_as" not in again
+
+
+@pytest.mark.parametrize("key, value", [("test_domain", "final"), ("demos", {"per_run": True})])
+def test_a_key_written_only_when_set_is_compared_when_it_goes_back_to_its_default(tmp_path, key, value):
+    """``test_domain`` and ``demos_per_run`` enter the identity only when set: an OUT computed with one
+    set is another experiment for a file without it (it resumed it before, mixing test arenas)."""
+    base = {"kind": "compare", "methods": ["rule"], "runs": 1, "tests": 2}
+    out = tmp_path / "out"
+    protocol.prepare(from_dict({**base, key: value}, "set.toml"), out, protocol.Execution("serial"), print)
+    with pytest.raises(ExperimentError, match="holds another experiment"):
+        protocol.prepare(from_dict(base, "unset.toml"), out, protocol.Execution("serial"), print)
+
+
+def test_a_stored_cell_of_another_id_method_or_run_is_not_taken_for_a_finished_one(tmp_path):
+    metrics = {"success_rate": 1.0, "collision_rate": 0.0, "timeout_rate": 0.0, "physics_error_rate": 0.0,
+               "mean_path_length": 1.0, "spl": 1.0, "tests": 2}  # fmt: skip
+    store = CellStore(tmp_path, check=protocol.cell_problem)
+    store.save("rule-run000", {**metrics, "method": "rule", "run": 0}, 1.0, 1)
+    assert store.load("rule-run000") is not None
+    shutil.copy(store.path("rule-run000"), store.path("forward-run000"))  # its record says rule-run000
+    assert store.load("forward-run000") is None
+    store.save("forward-run001", {**metrics, "method": "rule", "run": 1}, 1.0, 1)  # another method's
+    store.save("forward-run002", {**metrics, "method": "forward", "run": 7}, 1.0, 1)  # another run's
+    assert store.load("forward-run001") is None and store.load("forward-run002") is None
+    # suite and sweep cells end or continue with the method's run
+    for ident in ("demos-10.rule-run000", "rule-run000-n020-v2"):
+        store.save(ident, {**metrics, "method": "rule", "run": 0}, 1.0, 1)
+        assert store.load(ident) is not None

@@ -28,9 +28,9 @@ from nirl_mj.learn.loop import IrlLoop
 from nirl_mj.learn.reward import state_reward_features
 from nirl_mj.learn.terminal import absorbing_values
 
-LEARNERS_FROM_DEMONSTRATIONS = ("NIRL", "NIRL-classifier", "NIRL-paper", "AL", "RE", "SCIRL", "AL-traj",
-                                "RE-traj", "BC", "BC-paper", "GAIL", "GAIL-linear-last", "AIRL", "AIRL-state",
-                                "GAIL-absorbing")  # fmt: skip
+REFERENCES = ("DAgger", "PPO-reward", "DQN-reward", "rule", "forward", "expert")
+"""The built-in methods that read more than a learner from demonstrations may; every other is one."""
+LEARNERS_FROM_DEMONSTRATIONS = tuple(name for name in BUILTIN_METHODS if name not in REFERENCES)
 
 
 # -- the vocabulary and every built-in method's entry --------------------------------------------
@@ -51,6 +51,7 @@ def test_learners_from_demonstrations_read_no_task_signal(name):
 
 
 def test_references_say_what_more_they_read():
+    assert all(is_reference(method_reads(BUILTIN_METHODS[n])) for n in REFERENCES if n in BUILTIN_METHODS)
     assert method_reads(BUILTIN_METHODS["DAgger"]) == ["demonstrations", "features", "interactive_expert"]
     assert {"task_reward", "task_outcome"} <= set(method_reads(BUILTIN_METHODS["PPO-reward"]))
     assert method_reads(BUILTIN_METHODS["rule"]) == ["features", "hand_written"]
@@ -153,6 +154,52 @@ def test_a_learner_from_demonstrations_is_blind_to_the_task_outcome(method):
     assert not np.array_equal(a["net_W2"], b["net_W2"])
 
 
+def test_a_trained_run_is_blind_to_its_episodes_outcomes_end_to_end(tmp_path, monkeypatch):
+    """Through ``training.train`` (rollouts, selection, checkpoints, as a Table I cell trains): the
+    default NIRL keeps the same iteration and weights when every episode's outcome is swapped (target
+    and collision); the outcome reading of an episode's end does not (the test can fail)."""
+    from helpers import OPEN
+
+    from nirl_mj.data import trajectory
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.data.rundir import RunDir
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+    from nirl_mj.experiments.training import train
+    from nirl_mj.sim import spec as specs
+
+    task = specs.replace(OPEN, arena={"static_obstacles": 8}, control={"step_budget": 40})
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(task, ExpertConfig("rule"), episodes=2, seed=0))
+    finish = trajectory.TrajectoryRecorder.finish
+    ends = []
+
+    def swapped(self, outcome, *args, **kwargs):
+        ends.append(trajectory._outcome_name(outcome))
+        return finish(self, SWAP[ends[-1]], *args, **kwargs)
+
+    def trained(config: LearnerConfig, scrambled: bool) -> tuple[int, dict]:
+        out = tmp_path / f"run{len(list(tmp_path.glob('run*')))}"
+        with monkeypatch.context() as patch:
+            if scrambled:
+                patch.setattr(trajectory.TrajectoryRecorder, "finish", swapped)
+            record = train(out, task, demos, config, seed=0)
+        with np.load(RunDir(out).file("policy.npz")) as policy:
+            return record["selected_iteration"], {k: policy[k] for k in policy.files}
+
+    config = LearnerConfig.preset("default", episodes=3, trajectories_per_episode=3, validation_arenas=2,
+                                  replay_episodes=2)  # fmt: skip
+    assert "task_outcome" not in learner_reads(config)
+    (kept, same), (kept_scrambled, scrambled) = trained(config, False), trained(config, True)
+    assert {"target", "collision"} & set(ends), ends  # the swap changed what the episodes said
+    assert kept == kept_scrambled
+    for key in same:
+        np.testing.assert_array_equal(same[key], scrambled[key], err_msg=key)
+    oracle = config.replace(terminal_value="outcome")
+    _, a = trained(oracle, False)
+    _, b = trained(oracle, True)
+    assert any(not np.array_equal(a[k], b[k]) for k in a)
+
+
 # -- the learned value of an episode's end (learn/terminal.py) --------------------------------------
 
 
@@ -250,9 +297,10 @@ def test_the_readme_table_of_what_each_method_reads_is_the_code_s():
 
 
 def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -> dict:
-    """One PPO rollout (1,024 decisions) of ``algo`` on OPEN; with ``scrambled`` every step of the
-    environment hands out a random reward and the opposite outcome (``info``). The policy's and the
-    discriminator's weights after it."""
+    """Two PPO rollouts (2 x 1,024 decisions, a checkpoint after each) of ``algo`` on OPEN; with
+    ``scrambled`` every step of the environment hands out a random reward and the opposite outcome
+    (``info``). The last policy's and the discriminator's weights, the checkpoint the run's selection
+    kept (its score and decisions) and that checkpoint's weights: what its tests drive."""
     from helpers import OPEN
     from stable_baselines3 import PPO
 
@@ -272,8 +320,17 @@ def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -
         if scrambled:
             patch.setattr(NavigationEnv, "step", scramble)
         out = tmp_path / f"{algo}-{scrambled}"
-        train_rl(out, OPEN, algo, 1024, seed=0, demos=demos if algo != "ppo" else None)
-    weights = {k: v.numpy() for k, v in PPO.load(out / "model.zip", device="cpu").policy.state_dict().items()}
+        record = train_rl(out, OPEN, algo, 2048, seed=0, demos=demos if algo != "ppo" else None,
+                          checkpoint_every=1024)  # fmt: skip
+
+    def policy(path):
+        return {k: v.numpy() for k, v in PPO.load(path, device="cpu").policy.state_dict().items()}
+
+    weights = policy(out / "model.zip")
+    selected = record.get("selected")
+    if selected:
+        weights["selected"] = np.array([selected["steps"], selected["score"]])
+        weights.update({f"selected_{k}": v for k, v in policy(out / selected["file"]).items()})
     if (out / "discriminator.npz").is_file():
         with np.load(out / "discriminator.npz") as saved:
             weights.update({f"disc_{k}": saved[k] for k in saved.files})
@@ -295,7 +352,7 @@ def test_gail_and_airl_are_blind_to_the_task_reward_and_outcome(tmp_path, monkey
     for algo in ("gail", "airl-absorbing"):
         same = _adversarial_run(tmp_path, algo, demos, False, monkeypatch)
         scrambled = _adversarial_run(tmp_path, algo, demos, True, monkeypatch)
-        assert any(k.startswith("disc_") for k in same), algo
+        assert any(k.startswith("disc_") for k in same) and "selected" in same, algo
         for key in same:
             np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"{algo}: {key}")
     ppo = _adversarial_run(tmp_path, "ppo", None, False, monkeypatch)

@@ -111,9 +111,11 @@ class CellStore:
     (``platform``: the machine that computed the cell, :func:`nirl_mj.experiments.machine.platform_key`,
     whose bits a result depends on; cells stored before it was recorded lack it)."""
 
-    def __init__(self, directory: str | Path, check: Callable[[Any], str | None] | None = None) -> None:
+    def __init__(
+        self, directory: str | Path, check: Callable[[Any, str], str | None] | None = None
+    ) -> None:
         self.directory = Path(directory)
-        self.check = check  # a stored result it finds wrong (a reason) counts as not finished
+        self.check = check  # check(result, cell id): a stored result it finds wrong (a reason) is unfinished
 
     def path(self, cell_id: str) -> Path:
         return self.directory / f"{cell_id}.json"
@@ -126,7 +128,9 @@ class CellStore:
             result = record["result"]
         except (OSError, ValueError, KeyError, TypeError):
             return None
-        if self.check is not None and self.check(result) is not None:
+        if record.get("id", cell_id) != cell_id:  # another cell's record under this name (copied over)
+            return None
+        if self.check is not None and self.check(result, cell_id) is not None:
             return None
         return result
 

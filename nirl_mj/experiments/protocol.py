@@ -20,6 +20,7 @@ record), and a cell's result depends on nothing but its own arguments.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -83,7 +84,9 @@ def open_output(out: str | Path, experiment: Experiment, record: bool = True) ->
         if not isinstance(saved, dict):
             raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
         was, now = unspelled_identity(saved), unspelled_identity(identity)
-        differ = sorted(k for k in identity if was.get(k) != now.get(k))
+        # every key either holds: one written only when set (test_domain, demos_per_run) differs when
+        # it goes back to its default too ("runs", in identities of old, was never part of one)
+        differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
         if differ and not (
             set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
         ):
@@ -379,17 +382,24 @@ class Execution:
             )
 
 
-def cell_problem(result) -> str | None:
+def cell_problem(result, cell_id: str | None = None) -> str | None:
     """Why a stored cell cannot be a finished cell of an experiment (it is then computed again): not a
-    JSON object, no evaluation in it (but a sweep's training cell), or metrics out of their ranges
-    (``outcomes.metrics_problem``)."""
+    JSON object, no evaluation in it (but a sweep's training cell), metrics out of their ranges
+    (``outcomes.metrics_problem``), or, given the cell's id, the result of another method or run
+    (``METHOD-runNNN``, as compare, suite and sweep name their cells)."""
     from nirl_mj.data.outcomes import holds_metrics, metrics_problem
 
     if not isinstance(result, dict):
         return "not a JSON object"
     if "iterations" in result:  # a sweep's training cell: no evaluation in it
         return None
-    return metrics_problem(result) if holds_metrics(result) else "holds no evaluation"
+    if not holds_metrics(result):
+        return "holds no evaluation"
+    if cell_id is not None and isinstance(result.get("method"), str) and isinstance(result.get("run"), int):
+        own = f"{result['method']}-run{result['run']:03d}"
+        if not re.search(rf"(^|\.){re.escape(own)}($|-n)", cell_id):
+            return f"the result of {own}, not of {cell_id}"
+    return metrics_problem(result)
 
 
 @dataclass
