@@ -111,9 +111,7 @@ class CellStore:
     (``platform``: the machine that computed the cell, :func:`nirl_mj.experiments.machine.platform_key`,
     whose bits a result depends on; cells stored before it was recorded lack it)."""
 
-    def __init__(
-        self, directory: str | Path, check: Callable[[Any, str], str | None] | None = None
-    ) -> None:
+    def __init__(self, directory: str | Path, check: Callable[[Any, str], str | None] | None = None) -> None:
         self.directory = Path(directory)
         self.check = check  # check(result, cell id): a stored result it finds wrong (a reason) is unfinished
 
