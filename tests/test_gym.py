@@ -343,6 +343,12 @@ def test_an_expert_drives_a_vector_environment_as_it_drives_each_one():
     shares = ExpertPolicy("sensor", env=continuous)(continuous.reset(seed=[5, 6])[0])
     assert shares.shape == (2, 2) and shares.dtype == np.float32
     continuous.step(shares)
+    from nirl_mj.gym.policies import reference_policy
+
+    batch = continuous.reset(seed=[5, 6])[0]
+    rule = reference_policy("rule", env=continuous)(batch)  # a batch: one action per environment
+    assert rule.shape == (2, 2) and np.array_equal(rule[1], reference_policy("rule", env=continuous)(
+        {k: v[1] for k, v in batch.items()}))  # fmt: skip
 
 
 def test_an_environment_pickles_as_a_fresh_one_of_the_same_task():

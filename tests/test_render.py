@@ -80,6 +80,12 @@ def test_a_frame_at_a_decision_names_the_action_chosen_there(tmp_path, monkeypat
     assert shown[-1][0][2] == t.outcome
 
 
+def test_a_policy_s_bad_action_is_the_environment_s_error_and_leaves_no_video(tmp_path):
+    with pytest.raises(ValueError, match=r"action must be one integer in 0\.\.5"):
+        record_video(tiny_task(), lambda phi: 6, 7, tmp_path / "e.mp4", "top", 160, 120, fps=2.0)
+    assert not list(tmp_path.iterdir())
+
+
 def test_the_follow_camera_looks_straight_down_with_north_up():
     # as the top view and Rerun's arena show it: image right is east (+x), image up is north (+y)
     import mujoco

@@ -172,7 +172,7 @@ class NavigationEnv(gymnasium.Env):
                                   "render_mode='rgb_array'")  # fmt: skip
             return None
         global _RENDERED_IN
-        if _RENDERED_IN not in (None, os.getpid()):
+        if _RENDERED_IN not in (None, os.getpid()) and os.environ.get("MUJOCO_GL", "egl") == "egl":
             # forked (Linux's default for process vector environments) from a process that rendered:
             # the inherited EGL state would hang this call
             raise RuntimeError(

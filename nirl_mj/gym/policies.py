@@ -121,12 +121,15 @@ def reference_policy(name: str, env=None):
     task, _ = _task_of(env)
     continuous = task is not None and task.control.actions == "continuous"
 
+    def act(phi: np.ndarray) -> int | np.ndarray:
+        action = int(on_phi(phi))
+        return action_share(action) if continuous else action  # shares of env.unwrapped.action_scale
+
     def policy(observation: Mapping[str, np.ndarray] | np.ndarray) -> int | np.ndarray:
-        phi = observation["features"] if isinstance(observation, Mapping) else observation
-        action = int(on_phi(np.asarray(phi)))
-        if not continuous:
-            return action
-        return action_share(action)  # float32 shares of env.unwrapped.action_scale
+        phi = np.asarray(observation["features"] if isinstance(observation, Mapping) else observation)
+        if phi.ndim == 2:  # a vector environment's batch: one action per environment
+            return np.array([act(row) for row in phi])
+        return act(phi)
 
     policy.__name__ = name
     return policy

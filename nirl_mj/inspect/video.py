@@ -25,7 +25,8 @@ being executed, the danger levels of the seven sensors in phi(s) as coloured
 bars, the target sector V and the detection flag I; the outcome on the last
 frame. From the top camera the square arena fills a square of the frame and
 the overlays sit in a panel beside it (right of it in a wide frame, below it in
-a tall one), so they never cover the arena; from the other cameras, or in a
+a tall one), so they do not cover the arena, but for a panel too small for them
+(under about 76 px, e.g. 160 x 120); there, from the other cameras, and in a
 square frame, they sit semi-transparent in the top-left corner (in a top view
 that corner holds neither the start nor the target).
 
@@ -61,6 +62,7 @@ from nirl_mj.inspect.recording import DANGER_COLOURS  # noqa: E402
 from nirl_mj.sim.arena import OFFSCREEN_SIZE  # noqa: E402
 from nirl_mj.sim.episode import run_episode  # noqa: E402
 from nirl_mj.sim.spec import TaskSpec, load_task  # noqa: E402
+from nirl_mj.sim.task import checked_action  # noqa: E402
 
 CAMERAS = ("top", "follow", "chase")
 """Camera names accepted everywhere in this module (see the module docstring)."""
@@ -413,7 +415,8 @@ class _VideoEpisode:
         pass
 
     def act(self, timestep: Any) -> int:
-        self._action = int(self.policy(timestep.observation["features"]))
+        # checked before it labels a frame: a bad action is the environment's clear error, not a label's
+        self._action = checked_action(self.policy(timestep.observation["features"]))
         # the frame at a decision: state s_k beside the action a_k chosen there (as Rerun logs them)
         self._capture()
         return self._action
@@ -433,7 +436,7 @@ class _VideoEpisode:
             return
         frame = self.view.render()
         if self.overlay:
-            what = ACTION_NAMES[self._action] if self._action is not None else (self._outcome or "start")
+            what = ACTION_NAMES[self._action] if self._action is not None else self._outcome
             # Short lines: they fit the panel beside a top view of a 4:3 frame (a quarter of its width).
             frame = draw_overlay(
                 frame, [f"t {now:.2f} s", f"step {self._step}", what], self._phi, self.view.panel
