@@ -4,7 +4,7 @@ Runs the protocol as ``nirl-mj compare`` does, but with ``--runs`` runs (default
 instead of 25, on the local executor with ``--workers`` processes, in a temporary
 directory (demonstrations included), and projects the 25-run wall time from it:
 demonstrations + cells' wall x 25 / runs. The cells of a run are independent and
-the experiment has 18 x 25 of them; the short run's tail (a worker idle while the
+the experiment has 19 x 25 of them; the short run's tail (a worker idle while the
 last cell finishes) is multiplied too, so the projection errs on the long side.
 With ``--existing DIR``, it also reads the cell times of a finished
 (or partial) ``nirl-mj compare`` directory: the core time the real protocol took.
@@ -103,6 +103,9 @@ def existing_report(out: Path, runs: int, efficiency: float, minutes: float = 15
     """Core-minutes per run of each method in ``out``'s cells, the protocol's projected core time and
     the 2-core machines it needs to finish within ``minutes``."""
     times = cell_seconds(out)
+    if not times:
+        raise SystemExit(f"{out}: no cell there records its time (restored and published cells carry "
+                         "none): give the output of a `nirl-mj compare` that computed its cells")  # fmt: skip
     rows = [[m, str(len(t)), f"{statistics.median(t):.0f}", f"{statistics.mean(t) / 60:.1f}",
              f"{max(t) / 60:.1f}"] for m, t in times.items()]  # fmt: skip
     per_run = sum(statistics.mean(t) for t in times.values()) / 60
