@@ -347,7 +347,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
     import gymnasium  # noqa: F401  (the optional extra: missing, it fails here, before any work)
     import stable_baselines3  # noqa: F401
 
-    from nirl_mj.experiments.rl import ADVERSARIAL, train_rl
+    from nirl_mj.experiments.rl import ADVERSARIAL, DEFAULT_STEPS, train_rl
 
     out = RunDir(args.out)
     if args.resume:
@@ -367,7 +367,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
         args.steps = args.steps or saved["steps"]
     else:
         spec = _task(args)
-        args.algo, args.seed, args.steps = args.algo or "ppo", args.seed or 0, args.steps or 50_000
+        args.algo, args.seed, args.steps = args.algo or "ppo", args.seed or 0, args.steps or DEFAULT_STEPS
     if (args.algo in ADVERSARIAL) != bool(args.demos):
         raise SpecError(f"--demos goes with --algo gail or airl (the demonstrations they imitate); got "
                         f"--algo {args.algo}{' with' if args.demos else ' without'} --demos")  # fmt: skip
@@ -501,8 +501,9 @@ def _backend(args: argparse.Namespace, saved: dict | None = None) -> Backend:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    for flag, value, owner, default in (("--arenas", args.arenas, "paths", 4),
-                                        ("--snapshots", args.snapshots, "montage", 5)):  # fmt: skip
+    defaults = (("--arenas", args.arenas, "paths", video.PATHS_ARENAS),
+                ("--snapshots", args.snapshots, "montage", video.MONTAGE_SNAPSHOTS))  # fmt: skip
+    for flag, value, owner, default in defaults:
         if value is not None and not getattr(args, owner):
             raise video.RenderError(f"{flag} sets --{owner}'s figure; without --{owner} it has no use: "
                                     "leave it out")  # fmt: skip

@@ -7,10 +7,11 @@ from collections.abc import Callable
 
 from nirl_mj.cli import commands as c
 from nirl_mj.experiments.executors import EXECUTORS
-from nirl_mj.experiments.rl import ALGOS, SELECTIONS
+from nirl_mj.experiments.rl import ALGOS, DEFAULT_STEPS, SELECTIONS
 from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
+from nirl_mj.inspect.video import MONTAGE_SNAPSHOTS, PATHS_ARENAS
 from nirl_mj.learn.config import VARIANTS
 from nirl_mj.sim.rollouts import BACKENDS, DEVICES
 from nirl_mj.sim.spec import DRIVES
@@ -213,7 +214,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--demos", help="gail and airl: the demonstrations to imitate (a dataset path; a resume: "
                    "the run's)")  # fmt: skip
     p.add_argument("--steps", type=_positive_int, default=None,
-                   help="decisions in all (default: 50000; a resume: the run's, or more)")  # fmt: skip
+                   help=f"decisions in all (default: {DEFAULT_STEPS}; a resume: the run's, "
+                        "or more)")  # fmt: skip
     p.add_argument("--selection", choices=SELECTIONS, default=None,
                    help="how the checkpoint handed to tests is chosen (default: demo_balanced for gail and "
                         "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
@@ -255,9 +257,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --run: selected (default), last or an iteration number")  # fmt: skip
     p.add_argument("--out", help="MP4 video of the episode")
     p.add_argument("--montage", metavar="FILE.png", help="strip of snapshots of the episode (Fig. 8)")
-    p.add_argument("--snapshots", type=_positive_int, default=None, help="frames in --montage (default: 5)")
+    p.add_argument("--snapshots", type=_positive_int, default=None,
+                   help=f"frames in --montage (default: {MONTAGE_SNAPSHOTS})")  # fmt: skip
     p.add_argument("--paths", metavar="FILE.png", help="whole paths in several test arenas (Fig. 5)")
-    p.add_argument("--arenas", type=_positive_int, default=None, help="arenas in --paths (default: 4)")
+    p.add_argument("--arenas", type=_positive_int, default=None,
+                   help=f"arenas in --paths (default: {PATHS_ARENAS})")  # fmt: skip
     p.add_argument(
         "--camera", default="top", help="top (whole arena, default), follow (12 m above the robot) or chase"
     )

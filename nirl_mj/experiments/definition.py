@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from nirl_mj.experiments.rl import ALGOS, LEGACY, SELECTIONS, run_config
+from nirl_mj.experiments.rl import ALGOS, DEFAULT_STEPS, LEGACY, SELECTIONS, run_config
 from nirl_mj.experiments.seeds import TEST_DOMAINS
 from nirl_mj.experts import demonstrator_names
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes, without_retired
@@ -94,7 +94,7 @@ class MethodSpec:
     method: str = "nirl"
     config: dict = field(default_factory=dict)
     algo: str = "ppo"
-    steps: int = 50_000
+    steps: int = DEFAULT_STEPS
     selection: str = LEGACY["selection"]
     envs: int = LEGACY["envs"]
     settings: dict = field(default_factory=dict)  # rl: PPO's (experiments.rl.TUNABLE); dagger: its budget

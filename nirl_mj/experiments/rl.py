@@ -128,6 +128,8 @@ default) draws each action from its distribution, ``greedy`` takes its mode. Tra
 either way. ``inputs``, what the networks see of phi(s) (:func:`observation_code`): ``scaled`` (the
 default) or ``bearing``, NIRL's default code (``nirl_mj.learn.inputs``); an adversarial learner's
 discriminator reads the same code as its policy."""
+DEFAULT_STEPS = 50_000
+"""The decisions of ``nirl-mj rl`` and of an experiment's ``rl`` method that gives no ``steps``."""
 CHECKPOINT_EVERY = 5_000
 """Decisions between checkpoints (each one scored by the selection); ``envs`` must divide it."""
 
@@ -333,7 +335,7 @@ def train_rl(
     run_dir: str | os.PathLike,
     task: specs.TaskSpec,
     algo: str = "ppo",
-    steps: int = 50_000,
+    steps: int = DEFAULT_STEPS,
     seed: int = 0,
     resume: bool = False,
     checkpoint_every: int = CHECKPOINT_EVERY,

@@ -473,12 +473,16 @@ def _tile(images: Sequence[np.ndarray], columns: int, gap: int = 4) -> np.ndarra
     return sheet
 
 
+MONTAGE_SNAPSHOTS, PATHS_ARENAS = 5, 4
+"""The defaults of ``render --montage``'s frames and ``render --paths``' arenas."""
+
+
 def snapshot_strip(
     task: str | TaskSpec | Any,
     policy: Policy,
     seed: int,
     out_png: str | os.PathLike,
-    snapshots: int = 5,
+    snapshots: int = MONTAGE_SNAPSHOTS,
     camera: str = "top",
     width: int = 480,
     height: int = 360,
