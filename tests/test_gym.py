@@ -360,5 +360,7 @@ def test_an_environment_pickles_as_a_fresh_one_of_the_same_task():
     env.step(0)
     copy = pickle.loads(pickle.dumps(env))
     assert copy.unwrapped.task_spec == env.unwrapped.task_spec
+    # the spec gymnasium.make gave (its id and the task's step budget) survives the trip
+    assert copy.unwrapped.spec == env.unwrapped.spec and copy.unwrapped.spec.id == "nirl_mj/Navigate-v0"
     again, _ = copy.reset(seed=3)
     assert np.array_equal(first, again) and copy.observation_space == env.observation_space

@@ -118,12 +118,14 @@ class NavigationEnv(gymnasium.Env):
 
     def __getstate__(self) -> dict:
         """A pickled environment keeps its task and options; it unpickles as a fresh one of the same
-        task, to be reset (the simulation itself does not pickle: Gymnasium's async vector
-        environments and Ray send environments this way)."""
-        return dict(self._init)
+        task, to be reset, with the ``spec`` ``gymnasium.make`` gave it (the simulation itself does
+        not pickle: Gymnasium's async vector environments and Ray send environments this way)."""
+        return {**self._init, "_spec": self._spec}
 
     def __setstate__(self, state: dict) -> None:
+        spec = state.pop("_spec", None)
         self.__init__(**state)
+        self._spec = spec
 
     @property
     def dm_env(self):
