@@ -2,11 +2,12 @@
 
 :class:`SensorExpert` reads nothing but ``timestep.observation``: phi(s) as the
 task computes it from the sensors (``features``), the per-ray clearances
-``rays``, the odometry ``pose`` and the ``target`` position. It never looks at
-the arena, the task or the physics, so everything it knows about obstacles it
-has seen with its own rays. Its demonstrations are meant for learners that see
-only phi(s), so its ordinary decisions are a function of phi(s), and memory is
-used only to keep it safe and to get it out of pockets:
+``rays``, the ``pose`` (the simulator's, exact: odometry without drift) and the
+``target`` position. It never looks at the arena, the task or the physics, so
+everything it knows about obstacles it has seen with its own rays. Its
+demonstrations are meant for learners that see only phi(s), so its ordinary
+decisions are a function of phi(s), and memory is used only to keep it safe and
+to get it out of pockets:
 
 - **Rule on phi(s) (ordinary decisions).** The same rule as
   :func:`nirl_mj.experts.policies.rule_policy`: each forward arc is judged by the

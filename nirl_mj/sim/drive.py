@@ -222,8 +222,9 @@ def max_yaw_rate(period: float) -> float:
 def action_share(action: int) -> np.ndarray:
     """The continuous action that stands for discrete ``action``: float32 (2,), the shares in
     [-1, 1] of the speed (its direction, +-1) and of :func:`max_yaw_rate` (its turn over 60
-    degrees: 0, +-0.5, +-1). Held for a decision it drives as far and turns as far as the discrete
-    action (which ramps its yaw rate along a trapezoid instead of holding one)."""
+    degrees: 0, +-0.5, +-1). Held for a decision from cruise it drives as far, and turns about as far
+    (29.2 and 56.5 degrees against 30 and 60: the wheels ramp to the held rate), as the discrete
+    action, which ramps its yaw rate along a trapezoid instead of holding one."""
     act = _check_action(action)
     return np.array([act.direction, act.turn / math.radians(60.0)], dtype=np.float32)
 

@@ -14,7 +14,8 @@ decisions spent in each 1 m planning cell, and tracks progress towards the targe
   kept unless new obstacles were seen (at most every other decision), the visit costs have
   grown for 5 decisions, or the robot strayed from it or reached its end.
 
-It reads only what the robot has: its range rays, its odometry pose and the target position.
+It reads only what the robot has: its range rays, its pose and the target position (the pose is
+the simulator's, exact: odometry without drift).
 Two users: the sensor expert (``nirl_mj.experts.sensor``) steers by it when stuck, and the
 task's ``sensing.guide = "memory"`` option puts the escape bearing into phi's sector V, so
 that a memoryless policy on phi(s) can leave the pockets a memoryless rule cannot.
@@ -132,7 +133,7 @@ class RayMemory:
     def update(self, xy: np.ndarray, yaw: float, rays: np.ndarray) -> None:
         """One decision's observation: remembers the rays, counts the visit, tracks progress.
 
-        xy (2,) m, yaw rad (odometry); rays (9 k,) m as in :meth:`reset`.
+        xy (2,) m, yaw rad (the task's ``pose``, exact); rays (9 k,) m as in :meth:`reset`.
         """
         self.steps += 1
         self._remember(xy, yaw, rays)

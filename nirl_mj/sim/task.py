@@ -232,8 +232,10 @@ class NavigationTask(composer.Task):
         target's rim are farther than the robot can travel in one decision (with
         20 % to spare) plus ``self._hidden_margin``, what the gaps between rays can
         hide (0.5 m, plus half the gap between neighbouring rays at full range: a
-        box corner can poke at most that far between two rays). The end-of-decision
-        check in after_step stays as a safety net.
+        box corner can poke at most that far between two rays). That bound holds for
+        obstacles wider than the gap between rays (every generated one); an explicit one
+        thinner than that can hide entirely, and the end-of-decision check in after_step
+        catches its contact.
         """
         if self._spec.arena.moving_obstacles:
             return False
