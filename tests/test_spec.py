@@ -65,6 +65,8 @@ def test_step_budget_is_three_straight_line_times_by_default():
         ({"arena": {"obstacle_size": [3, 1]}}, "expected [min, max] with 0 < min <= max"),
         ({"sensing": {"range": 1.0, "danger7_clearance": 2.0}}, "must be < range"),
         ({"control": {"decision_period": 0.505}}, "whole multiple of command_period"),
+        ({"arena": {"interior_wall_length": -5.0}}, "interior_wall_length = -5.0: expected a list of 2"),
+        ({"arena": {"floor_plan_count": 3}}, 'with floor_plan = "random" there are none'),
     ],
 )
 def test_bad_values_name_the_field_and_what_is_accepted(data, message):
@@ -72,6 +74,13 @@ def test_bad_values_name_the_field_and_what_is_accepted(data, message):
         spec.from_dict(data, "t.toml")
     assert message in str(err.value)
     assert str(err.value).startswith("t.toml")
+
+
+def test_a_kind_that_is_no_experiments_is_an_unknown_key_of_a_task(tmp_path):
+    path = tmp_path / "t.toml"
+    path.write_text('kind = "task"\n')  # not "run it with nirl-mj task --task", which does not exist
+    with pytest.raises(SpecError, match=r"unknown key\(s\) kind; accepted: name"):
+        spec.load_task(path)
 
 
 def test_unknown_task_lists_the_shipped_ones(tmp_path):

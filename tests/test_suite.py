@@ -93,6 +93,15 @@ def test_a_bad_axis_is_one_error_naming_the_key(axis, message):
     assert "\n" not in str(err.value)
 
 
+def test_an_axis_test_task_takes_the_robot_of_set_but_keeps_its_arenas():
+    data = {"kind": "suite", "set": {"arena": {"static_obstacles": 20}, "robot": {"drive": "rollers"},
+                                     "control": {"speed": 1.0}},
+            "axis": [{"name": "family", "values": ["pockets"], "test_task": "structured"}]}  # fmt: skip
+    task = from_dict(data, "s.toml").axes[0].task_at("pockets")
+    assert (task.robot.drive, task.control.speed) == ("rollers", 1.0)
+    assert task.arena.static_obstacles == spec.load_task("structured").arena.static_obstacles != 20
+
+
 def test_an_axis_belongs_to_suites_only():
     with pytest.raises(ExperimentError, match=r"unknown key\(s\) axis \(kind compare\)"):
         from_dict({"kind": "compare", "axis": [{"name": "speed", "values": [1.0]}]}, "s.toml")

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from nirl_mj.cli import commands as c
 from nirl_mj.experiments.executors import EXECUTORS
 from nirl_mj.experiments.rl import ALGOS, DEFAULT_STEPS, SELECTIONS
+from nirl_mj.experiments.seeds import SEED_LIMIT
 from nirl_mj.experiments.subjects import REFERENCES
 from nirl_mj.experts import EXPERT_KINDS
 from nirl_mj.experts.policies import POLICIES
@@ -36,7 +37,7 @@ def _number(kind: Callable, low: float, high: float, accepted: str) -> Callable[
 
 _positive_int = _number(int, 1, float("inf"), "a whole number >= 1")
 _probability = _number(float, 0.0, 1.0, "a probability in [0, 1]")
-_seed = _number(int, 0, 2**63 - 1, "a seed, a whole number in 0 .. 2^63 - 1")
+_seed = _number(int, 0, SEED_LIMIT - 1, "a seed, a whole number in 0 .. 2^32 - 1")
 _workers = _number(int, 1, 1024, "a number of processes in 1 .. 1024")
 
 

@@ -34,14 +34,14 @@ from pathlib import Path
 from typing import Any
 
 from nirl_mj.experiments.rl import ALGOS, DEFAULT_STEPS, LEGACY, SELECTIONS, run_config
-from nirl_mj.experiments.seeds import TEST_DOMAINS
+from nirl_mj.experiments.seeds import SEED_LIMIT, TEST_DOMAINS
 from nirl_mj.experts import demonstrator_names
 from nirl_mj.learn.config import METHODS, VARIANTS, LearnerConfig, checked_changes, without_retired
 from nirl_mj.sim import spec as specs
 from nirl_mj.sim.floorplans import FAMILIES
 from nirl_mj.sim.spec import SpecError
 
-KINDS = ("compare", "sweep", "suite")
+KINDS = specs.EXPERIMENT_KINDS
 METHOD_KINDS = ("irl", "bc", "dagger", "forward", "rule", "rl", "expert", "plugin")
 
 COMMON_KEYS = ("kind", "description", "task", "test_task", "set", "seed", "runs", "tests", "methods",
@@ -403,9 +403,9 @@ def from_dict(
 
     overrides = _table(data.get("set", {}), where("set"))
     _known(overrides, SET_SECTIONS, where("set"), "")
-    task = _task(data.get("task", "navigate"), base, overrides, where("task"))
+    task = _task(data.get("task", "navigate"), base, overrides, where("task"), where("set"))
     test_task = _task(
-        data.get("test_task", data.get("task", "navigate")), base, overrides, where("test_task")
+        data.get("test_task", data.get("task", "navigate")), base, overrides, where("test_task"), where("set")
     )
 
     demos = _table(data.get("demos", {}), where("demos"))
@@ -440,7 +440,7 @@ def from_dict(
         expert=expert,
         demos=_int(demos.get("episodes", 30), f"{where('demos')}.episodes", 1),
         config=config,
-        paper=_paper(data.get("paper", {}), methods, where("paper")),
+        paper=_paper(data.get("paper", {}), methods, where("paper"), full_methods),
         strip=strip,
         obstacles=tuple(_int(v, f"{where('obstacles')}[{i}]", 0)
                         for i, v in enumerate(_list(data.get("obstacles", []), where("obstacles")))),
@@ -449,8 +449,11 @@ def from_dict(
         quick=quick,
         demos_per_run=_bool(demos.get("per_run", False), f"{where('demos')}.per_run"),
         test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
-        axes=_axes(data, test_task, base, where) if kind == "suite" else (),
+        axes=_axes(data, test_task, base, where, overrides) if kind == "suite" else (),
     )  # fmt: skip
+    if experiment.seed + experiment.runs - 1 >= SEED_LIMIT:
+        raise ExperimentError(f"{where('seed')} = {experiment.seed} with runs = {experiment.runs}: the run "
+                              "seeds seed .. seed + runs - 1 must stay in 0 .. 2^32 - 1")  # fmt: skip
     check_actions(experiment.methods, (experiment.task, experiment.test_task), source)
     if kind == "sweep":
         rl = [m.name for m in methods if m.kind == "rl"]
@@ -469,10 +472,12 @@ def from_dict(
                     experiment.cell_task(n, v)
                 except SpecError as exc:
                     raise ExperimentError(f"{source}: cell ({n} obstacles, {v} m/s): {exc}") from None
+    if not quick and "quick" in data:  # a mistake in [quick] is found now, not at the first --quick
+        from_dict(data, source, base, quick=True)
     return experiment
 
 
-def _axes(data: dict, test_task: specs.TaskSpec, base: Path, where) -> tuple[Axis, ...]:
+def _axes(data: dict, test_task: specs.TaskSpec, base: Path, where, overrides: dict) -> tuple[Axis, ...]:
     """A suite's ``[[axis]]`` tables: one training axis, or one or more test axes."""
     tables = _list(data.get("axis", []), where("axis"))
     if not tables:
@@ -496,7 +501,13 @@ def _axes(data: dict, test_task: specs.TaskSpec, base: Path, where) -> tuple[Axi
                 raise ExperimentError(f"{at}.test_task: only a test axis ({', '.join(TEST_AXES)}) takes one")
             axes.append(Axis(name, checked))
             continue
-        task = _task(table["test_task"], base, {}, f"{at}.test_task") if "test_task" in table else test_task
+        # an axis's own task keeps its arenas; the robot, its sensing and control stay [set]'s
+        robot = {k: v for k, v in overrides.items() if k != "arena"}
+        task = (
+            _task(table["test_task"], base, robot, f"{at}.test_task", where("set"))
+            if "test_task" in table
+            else test_task
+        )
         axis = Axis(name, checked, task)
         for v in checked:
             try:
@@ -705,28 +716,43 @@ def _learner_changes(table: dict, where: str) -> dict:
         raise ExperimentError(str(exc)) from None
 
 
-def _paper(table: Any, methods: tuple[MethodSpec, ...], where: str) -> dict:
+def _paper(table: Any, methods: tuple[MethodSpec, ...], where: str, full_methods: Any) -> dict:
+    """The paper's rows of the methods run (a row of a method that ``[quick] methods`` leaves out is
+    checked, then dropped)."""
     table = _table(table, where)
     names = [m.name for m in methods]
+    listed = [n for n in full_methods if isinstance(n, str)] if isinstance(full_methods, list) else []
     out = {}
     for name, row in table.items():
-        _member(name, names, f"{where}.{name}")
+        _member(name, names + [n for n in listed if n not in names], f"{where}.{name}")
         row = _table(row, f"{where}.{name}")
         _known(row, PAPER_KEYS, f"{where}.{name}", "")
-        out[name] = {k: _number(row[k], f"{where}.{name}.{k}", 0.0, 100.0) for k in PAPER_KEYS if k in row}
+        values = {k: _number(row[k], f"{where}.{name}.{k}", 0.0, 100.0) for k in PAPER_KEYS if k in row}
+        if name in names:
+            out[name] = values
     return out
 
 
-def _task(value: Any, base: Path, overrides: dict, where: str) -> specs.TaskSpec:
+def _task(value: Any, base: Path, overrides: dict, where: str, set_where: str = "set") -> specs.TaskSpec:
+    """The task ``value`` names, changed by ``overrides`` (the experiment's ``[set]``, found at
+    ``set_where`` for messages)."""
     name = _str(value, where)
     path = Path(name)
-    if path.suffix == ".toml" and not path.is_absolute() and (base / path).is_file():
-        name = str(base / path)
+    if path.suffix == ".toml" and not path.is_absolute():
+        # never the working directory's: the experiment means the same task wherever it runs
+        found = [p for p in (base / path, specs.TASKS_DIR.parent / path) if p.is_file()]
+        if not found:
+            raise ExperimentError(f"{where} = {name!r}: no such file beside the experiment ({base / path}) "
+                                  f"or in the checkout ({specs.TASKS_DIR.parent / path})")  # fmt: skip
+        name = str(found[0])
     try:
         task = specs.load_task(name)
-        return specs.replace(task, **overrides) if overrides else task
     except SpecError as exc:
         raise ExperimentError(f"{where}: {exc}") from None
+    try:
+        return specs.replace(task, **overrides) if overrides else task
+    except SpecError as exc:  # a value of [set] (or [quick.set]): say so, not only the task's name
+        raise ExperimentError(f"{set_where}: {exc}") from None
 
 
 def _merge(data: dict, changes: dict) -> dict:

@@ -254,7 +254,8 @@ def _convert_type(hint: Any, value: Any, where: str) -> Any:
     if origin is tuple:
         args = typing.get_args(hint)
         if not isinstance(value, list | tuple):
-            raise SpecError(f"{where} = {value!r}: expected a list")
+            shape = "a list" if args[-1] is Ellipsis else f"a list of {len(args)} numbers"
+            raise SpecError(f"{where} = {value!r}: expected {shape}")
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_convert_type(args[0], v, f"{where}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
@@ -341,6 +342,10 @@ def _check_arena(obj: ArenaSpec, where: str) -> None:
             f"{where}.start = {list(obj.start)} is within target_radius ({obj.target_radius} m) of "
             f"target = {list(obj.target)}: an episode would start at its goal"
         )
+    if obj.floor_plan == "random" and obj.floor_plan_count:
+        raise SpecError(f"{where}.floor_plan_count = {obj.floor_plan_count}: counts the structures of a "
+                        'floor plan; with floor_plan = "random" there are none: leave it out or name a '
+                        "family")  # fmt: skip
     for i, obstacle in enumerate(obj.obstacles):
         x, y = obstacle.position
         if not (0 <= x <= w and 0 <= y <= h):
@@ -383,6 +388,10 @@ def from_dict(data: dict[str, Any], source: str = "<dict>") -> TaskSpec:
     return _convert(TaskSpec, data, source)
 
 
+EXPERIMENT_KINDS = ("compare", "sweep", "suite")
+"""The ``kind`` of an experiment file (``nirl_mj.experiments.definition.KINDS``); a task file has none."""
+
+
 def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
     """Returns the spec for a task name under ``tasks/``, a TOML path (a relative one not found
     from the working directory is looked up in the checkout: ``"tasks/dynamic.toml"`` works from
@@ -399,7 +408,7 @@ def load_task(task: str | Path | TaskSpec = "navigate") -> TaskSpec:
             )
         path = named
     data = read_toml(path, "task file", SpecError)
-    if "kind" in data:  # an experiment file (compare, sweep, suite) that names its task
+    if "kind" in data and data["kind"] in EXPERIMENT_KINDS:  # an experiment file that names its task
         raise SpecError(f"{path} is an experiment (kind = {data['kind']!r}), not a task: run it with "
                         f"`nirl-mj {data['kind']} --task {path}`; its task is its `task = ...`")  # fmt: skip
     data.setdefault("name", path.stem)
