@@ -107,6 +107,30 @@ def test_an_axis_belongs_to_suites_only():
         from_dict({"kind": "compare", "axis": [{"name": "speed", "values": [1.0]}]}, "s.toml")
 
 
+def test_check_runs_and_writes_nothing_and_says_what_would_run(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text('kind = "suite"\nmethods = ["NIRL", "rule"]\nruns = 2\nseed = 7\n'
+                    '[[axis]]\nname = "speed"\nvalues = [1.0, 2.0]\n[quick]\nruns = 1\n')  # fmt: skip
+    out = tmp_path / "out"
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 0
+    text = capsys.readouterr().out
+    assert (
+        "a valid suite experiment" in text
+        and "runs 2 (seeds 7..8)" in text
+        and "axis speed: 1.0, 2.0" in text
+    )
+    assert "rule (rule, a reference): reads features, hand_written" in text
+    assert f"output: {out} (does not exist yet)" in text and not out.exists()
+    (out / "cells").mkdir(parents=True)
+    (out / "cells" / "NIRL-run000.json").write_text("{}")
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check", "--quick"]) == 0
+    text = capsys.readouterr().out
+    assert "(--quick)" in text and "runs 1 (seeds 7..7)" in text and "1 finished cell(s) there" in text
+    path.write_text(path.read_text() + "[quick.demos]\nepisodez = 3\n")
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 2
+    assert "quick.demos: unknown key(s) episodez" in capsys.readouterr().err
+
+
 def test_a_suite_error_on_the_command_line_is_one_error_line(tmp_path, capsys):
     path = tmp_path / "bad.toml"
     path.write_text('kind = "suite"\n[[axis]]\nname = "obstacles"\nvalues = []\n')

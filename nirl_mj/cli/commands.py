@@ -591,6 +591,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     if args.runs is not None:
         experiment = dataclasses.replace(experiment, runs=args.runs)
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
+    if args.check:
+        print(_plan_text(experiment, out))
+        return 0
     only, points = (tuple(n.strip() for n in (getattr(args, key, None) or "").split(",") if n.strip())
                     for key in ("only", "points"))  # fmt: skip
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
@@ -628,6 +631,31 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     if args.json:
         print(json_line(summary))
     return 1 if summary["failures"] else 0
+
+
+def _plan_text(experiment, out: Path) -> str:
+    """``--check``: what a valid experiment file would run, and what its output directory holds."""
+    from nirl_mj.experiments.reads import is_reference, method_reads
+
+    e = experiment
+    demos = f"{e.demos} by the {e.expert} expert, {'a set per run' if e.demos_per_run else 'one set'}"
+    lines = [f"{e.source}: a valid {e.kind} experiment{' (--quick)' if e.quick else ''}: {e.description}",
+             f"runs {e.runs} (seeds {e.seed}..{e.seed + e.runs - 1}), {e.tests} test arenas each from the "
+             f"{e.test_domain!r} domain; demonstrations: {demos}",
+             f"task {e.task.name}, tests on {e.test_task.name}",
+             *(f"axis {a.name}: {', '.join(map(str, a.values))}" for a in e.axes)]  # fmt: skip
+    if e.kind == "sweep":
+        lines.append(f"cells: {len(e.obstacles)} obstacle counts x {len(e.speeds)} speeds")
+    lines.append(f"methods ({len(e.methods)}):")
+    for m in e.methods:
+        reads = method_reads(m, e.config)
+        lines.append(f"  {m.name} ({m.kind}{', a reference' if is_reference(reads) else ''}): reads "
+                     f"{', '.join(reads) or 'nothing'}")  # fmt: skip
+    cells = out / "cells"
+    held = len(list(cells.glob("*.json"))) if cells.is_dir() else 0
+    where = f"{held} finished cell(s) there: a run resumes them if the experiment is the same"
+    lines.append(f"output: {out} ({where if out.exists() else 'does not exist yet'})")
+    return "\n".join(lines)
 
 
 def cmd_leaderboard(args: argparse.Namespace) -> int:

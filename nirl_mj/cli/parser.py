@@ -123,6 +123,9 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
         "far (a partial report of a long or interrupted experiment; while the experiment runs, they are "
         "printed, not written: one writer per output)",
     )
+    p.add_argument("--check", action="store_true",
+                   help="run and write nothing: check the file (its [quick] table too) and print what it "
+                   "would run, and what --out holds")  # fmt: skip
     if name in ("compare", "suite"):
         p.add_argument("--only", default=None, metavar="NAMES",
                        help="comma-separated methods: compute only their cells; the tables show the "
