@@ -65,7 +65,7 @@ def test_a_minari_dataset_trains_like_its_file(exported, tmp_path):
     assert json.loads((run / "run.json").read_text())["demos"] == f"minari:{ID}"
 
 
-def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys):
+def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert main(["export", str(exported), "--to", "minari", "--id", ID, "--quiet"]) == 2
     assert "exists; pass --overwrite to replace it" in capsys.readouterr().err
@@ -75,6 +75,10 @@ def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys):
     assert main(["train", "--demos", "minari:nirl_mj/navigate/none-v0", "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert "no local Minari dataset 'nirl_mj/navigate/none-v0'" in err and ID in err
+    # with no datasets folder at all, the lookup makes none
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "nowhere"))
+    assert main(["train", "--demos", "minari:nirl_mj/navigate/none-v0", "--out", str(tmp_path / "r")]) == 2
+    assert "no datasets folder" in capsys.readouterr().err and not (tmp_path / "nowhere").exists()
 
 
 def test_gail_takes_a_minari_id_as_train_does(exported, tmp_path):

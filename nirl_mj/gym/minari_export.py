@@ -240,6 +240,11 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
     import minari
 
     _check_id(dataset_id)
+    # minari's own lookup makes its datasets folder (~/.minari/datasets): a failing one must not
+    root = Path(os.environ.get("MINARI_DATASETS_PATH") or Path.home() / ".minari" / "datasets")
+    if not root.is_dir():
+        raise MinariError(f"no local Minari dataset {dataset_id!r} (no datasets folder {root}); write one "
+                          "with nirl-mj export D.npz --to minari --id ID")  # fmt: skip
     if dataset_id not in minari.list_local_datasets():
         raise MinariError(f"no local Minari dataset {dataset_id!r} (local: "
                           f"{', '.join(sorted(minari.list_local_datasets())) or 'none'}); write one with "
