@@ -449,6 +449,21 @@ def test_reward_is_theta_dot_f_eq2(kind):
     np.testing.assert_allclose(model.rewards_all_actions(phi), all_action_features(phi, kind) @ model.theta)
 
 
+def test_the_papers_pair_features_put_phi_in_the_taken_actions_block_eq4_5():
+    """Eq. 4-5 by hand: f(s, a) is 96 values, phi(s) in block a (16 values from 16 a), zeros elsewhere;
+    so r_theta(s, a) = theta_a . phi(s) (eq. 2)."""
+    from nirl_mj.learn.reward import RewardModel, pair_features
+
+    phi = np.arange(1.0, 17.0)
+    f = pair_features(phi[None], np.array([2]), "paper")[0]
+    expected = np.zeros(96)
+    expected[32:48] = phi
+    np.testing.assert_array_equal(f, expected)
+    theta = np.zeros(96)
+    theta[32:48], theta[:16] = 0.5, 7.0  # another action's block does not count
+    assert RewardModel(theta, "paper").reward(phi[None], np.array([2]))[0] == 0.5 * phi.sum()
+
+
 def test_bearing_features_hold_the_target_sectors_centre_as_cos_and_sin():
     from nirl_mj.learn.reward import block_names, state_reward_features
 

@@ -45,6 +45,17 @@ def test_same_seed_gives_identical_weights(tmp_path, demos, variant):
     assert not np.array_equal(weights(tmp_path / "a")[0], weights(tmp_path / "c")[0])
 
 
+def test_algorithm_1_stops_once_the_margin_is_at_most_epsilon(tmp_path, demos):
+    """Lines 6-8: the loop ends after the iteration whose margin t <= epsilon (the paper preset's
+    epsilon is 0); the default's -inf never stops it."""
+    for epsilon, iterations in ((float("inf"), 1), (float("-inf"), 3)):
+        run = tmp_path / str(epsilon)
+        train(run, TINY, demos, tiny_config(epsilon=epsilon), seed=1)
+        assert len(RunDir(run).read_metrics()) == iterations
+        assert bool(RunDir(run).read_checkpoint()["stopped"]) == (iterations == 1)
+    assert LearnerConfig.preset("paper").loop.epsilon == 0.0
+
+
 @pytest.mark.parametrize("matching", ["occupancy", "policy"])
 def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos, matching):
     """Also for the policy matching, whose reward step keeps the learner's past policies."""

@@ -227,7 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="environments sharing each rollout, in turn (default: 1; a resume: the run's)")
     p.add_argument("--train-drive", choices=DRIVES, default=None,
                    help="the drive of the training episodes (default: the task's; a resume: the run's); "
-                        "validation and tests drive the task's, as NIRL's train_drive")
+                        "validation and tests drive the task's")
     p.add_argument("--seed", type=_seed, default=None,
                    help="training seed (network, arenas; default: 0; a resume: the run's)")  # fmt: skip
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")

@@ -6,7 +6,8 @@ Each iteration ("episode" in the paper):
    trajectories in fresh training arenas (line 4);
 2. find theta by projected subgradient on the max-margin objective (eq. 12-13,
    line 5); minus the objective's minimum is the margin t (how far the best reward still puts
-   the expert above every alternative; 0 once the learner matches); stop if t <= epsilon (lines 6-8);
+   the expert above every alternative; what it reads depends on the reading, docs/ALGORITHM.md);
+   stop if t <= epsilon (lines 6-8: the paper preset's epsilon = 0; the default never stops);
 3. rewards r_theta = theta^T f (eq. 2), value targets (eq. 14: SARSA in the
    paper variant; n-step Q-learning targets in the default, docs/ALGORITHM.md)
    and backpropagation on the cross-entropy cost (eq. 15) give the next

@@ -363,7 +363,8 @@ class MaxMarginStep:
         context: object = None,
     ) -> tuple[np.ndarray, float]:
         """The next theta and the margin t (-min J: how far the best reward still puts the
-        expert above every loss-augmented alternative; it falls to 0 as the learner matches).
+        expert above every loss-augmented alternative; under the per-state occupancy reading the
+        expert's own action is an alternative, so t <= 0 there).
         ``context`` (the rollouts' policy) is not needed here."""
         lr = self.own.mmp_step_size / (1.0 + self.own.mmp_step_decay * iteration)
         loss = self.margin_loss(greedy_on_demos)

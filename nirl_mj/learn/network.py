@@ -1,17 +1,17 @@
 """The neural policy representation of NIRL (paper section III-B, III-C, IV-C).
 
-A three-layer sigmoid network G maps the state features phi(s) (16 values) to
-the six action values Q(s, u_1..u_6) in (0, 1) (eq. 6-7). Bias units are part
-of the input and hidden layers and equal 1, so each weight matrix has one
-extra column 0 holding the bias weights:
+A three-layer sigmoid network G maps the network's inputs (phi(s)'s 16 values in the
+paper; the default's bearing code has 17, ``learn/inputs.py``) to the six action values
+Q(s, u_1..u_6) in (0, 1) (eq. 6-7). Bias units are part of the input and hidden layers and
+equal 1, so each weight matrix has one extra column 0 holding the bias weights:
 
 - ``W1``: (n_hidden, n_in + 1), input layer -> hidden layer;
 - ``W2``: (n_out, n_hidden + 1), hidden layer -> output layer.
 
 The policy is Boltzmann in the action values (eq. 8, parameter eta, 1/Q-unit)
-while learning and greedy once trained (eq. 9). The network is fitted to SARSA
-targets by gradient descent on the cross-entropy cost with L2 regularisation of
-the non-bias weights (eq. 15). Everything is float64.
+while learning and greedy once trained (eq. 9). The network is fitted to value targets (SARSA
+in the paper, n-step Q-learning in the default: ``learn/sarsa.py``) by gradient descent on the
+cross-entropy cost with L2 regularisation of the non-bias weights (eq. 15). Everything is float64.
 """
 
 from __future__ import annotations

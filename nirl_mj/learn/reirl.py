@@ -46,15 +46,16 @@ Readings in the shared loop (:class:`nirl_mj.learn.loop.IrlLoop`), each with its
 - ``re_expectations = "suffix"``: every visited pair starts a sample (its discounted suffix, H
   pairs, and that window's ratio), on both sides, instead of each trajectory's start only.
 - ``re_expectations = "state"`` (the default since 2026-11-25): the per-state reading of NIRL's
-  default margin (``learn/mmp.py``; AL's in ``learn/al.py``). Every demonstrated state s_n is its
-  own sample space: the expert's suffix mu_E(s_n, a_n) = f(s_n, a_n) + gamma mu_E(next_n) against
-  the alternatives f(s_n, a) + gamma mu_E(next_n), the continuation shared, so it cancels in the
-  dual. The importance-sampling estimate of Z_n over actions a ~ pi(. | s_n) has an exact
-  expectation, E_pi[U(a) / pi(a | s_n) exp(theta^T f(s_n, a))] = sum_a U(a) exp(theta^T f(s_n, a)),
-  whatever pi is; it is used as is (zero variance), so the learner's rollouts drop out of this
-  reading, as they do for SCIRL. The dual becomes an L1-regularised conditional logit of the
-  expert's actions, g(theta) = (1/N) sum_n [theta^T f(s_n, a_n) - ln sum_a U(a) exp(theta^T f(s_n, a))]
-  - sum_i eps_i |theta_i|, with eps_i of step 2 for one pair (H = 1) and N_T demonstrations.
+  classifier margin (``matching = "occupancy"``, ``learn/mmp.py``; AL's in ``learn/al.py``). Every
+  demonstrated state s_n is its own sample space: the expert's suffix mu_E(s_n, a_n) = f(s_n, a_n) +
+  gamma mu_E(next_n) against the alternatives f(s_n, a) + gamma mu_E(next_n), the continuation
+  shared, so it cancels in the dual. The importance-sampling estimate of Z_n over actions a ~ pi(. |
+  s_n) has an exact expectation, E_pi[U(a) / pi(a | s_n) exp(theta^T f(s_n, a))] = sum_a U(a)
+  exp(theta^T f(s_n, a)), whatever pi is; it is used as is (zero variance), so the learner's
+  rollouts drop out of this reading, as they do for SCIRL. The dual becomes an L1-regularised
+  conditional logit of the expert's actions, g(theta) = (1/N) sum_n [theta^T f(s_n, a_n) - ln sum_a
+  U(a) exp(theta^T f(s_n, a))] - sum_i eps_i |theta_i|, with eps_i of step 2 for one pair (H = 1)
+  and N_T demonstrations.
 
 The convergence measure is the norm of the (proximal) gradient at the returned theta: 0 at the
 maximum of g on the current samples.

@@ -3,7 +3,8 @@ and the n-step returns of the default variant (docs/notebook/algorithm.md, "The 
 
 Q-values are the network's outputs in (0, 1) (eq. 7), so the targets are
 clipped to [0, 1]; the share that needed clipping is returned so callers can
-see when the reward scale does not fit (see docs: rewards of +-3 clipped 93 %).
+see when the reward scale does not fit (the rewards are scaled into [0, 1 - gamma] so that
+they do, ``LoopConfig.reward_scaling``).
 """
 
 from __future__ import annotations
