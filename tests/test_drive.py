@@ -84,12 +84,14 @@ def test_rate_limit_respects_limit() -> None:
 
 
 def test_rate_limit_keeps_direction() -> None:
-    # The whole step is scaled, so the commanded twist keeps its direction.
-    target = drive.wheel_speeds([2.0, 0.0, 0.0])
-    out = drive.rate_limit(np.zeros(3), target[None], 100.0, 0.01)[0]
-    twist = drive.body_twist(out)
-    assert twist[0] > 0
-    np.testing.assert_allclose(twist[1:], 0.0, atol=1e-12)
+    # The whole step is scaled, so the commanded twist keeps its direction: with wheels whose steps
+    # differ in size (a turn while driving, a sideways drift) clipping each wheel would bend it.
+    for wanted in ([2.0, 0.0, 0.0], [2.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, -1.5, 2.0]):
+        out = drive.rate_limit(np.zeros(3), drive.wheel_speeds(wanted)[None], 100.0, 0.01)[0]
+        twist = drive.body_twist(out)
+        share = twist @ np.asarray(wanted) / np.dot(wanted, wanted)
+        assert 0 < share < 1, wanted  # limited, not reached
+        np.testing.assert_allclose(twist, share * np.asarray(wanted), atol=1e-12)
 
 
 def test_controller_forward_to_backward_takes_time() -> None:

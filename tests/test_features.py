@@ -21,10 +21,21 @@ from nirl_mj.data import features
         (1.0, 6),
         (0.99, 7),
         (0.0, 7),
+        # edges that floating point puts just below the band's (1 + 4/6 = 1.6666666666666665): the
+        # epsilon keeps them in the farther band
+        (1.0 + 4.0 / 6, 5),
+        (1.0 + 2 * (4.0 / 6), 4),
     ],
 )
 def test_danger_bands_default(clearance, level):
     assert features.danger_levels(clearance, 5.0, 1.0) == level
+
+
+def test_danger_bands_follow_the_tasks_range_and_danger7_clearance():
+    # R = 3 m, c7 = 0.6 m: six bands of 0.4 m, [0.6, 1.0) level 6 down to [2.6, 3.0) level 1
+    clearances = [0.0, 0.59, 0.6, 0.99, 1.0, 2.59, 2.6, 2.99, 3.0, np.inf]
+    levels = features.danger_levels(np.array(clearances), 3.0, 0.6)
+    assert levels.tolist() == [7, 7, 6, 6, 5, 2, 1, 1, 0, 0]
 
 
 def test_danger_is_monotone_in_clearance():
