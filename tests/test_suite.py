@@ -109,8 +109,8 @@ def test_an_axis_belongs_to_suites_only():
 
 def test_check_runs_and_writes_nothing_and_says_what_would_run(tmp_path, capsys):
     path = tmp_path / "s.toml"
-    path.write_text('kind = "suite"\nmethods = ["NIRL", "rule"]\nruns = 2\nseed = 7\n'
-                    '[[axis]]\nname = "speed"\nvalues = [1.0, 2.0]\n[quick]\nruns = 1\n')  # fmt: skip
+    path.write_text('kind = "suite"\nmethods = ["NIRL", "rule"]\nruns = 2\nseed = 7\n[[axis]]\n'
+                    'name = "speed"\nvalues = [1.0, 2.0]\n[quick]\nruns = 1\ntests = 5\n')  # fmt: skip
     out = tmp_path / "out"
     assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 0
     text = capsys.readouterr().out
@@ -121,11 +121,31 @@ def test_check_runs_and_writes_nothing_and_says_what_would_run(tmp_path, capsys)
     )
     assert "rule (rule, a reference): reads features, hand_written" in text
     assert f"output: {out} (does not exist yet)" in text and not out.exists()
+    # an output of this experiment, of another one, of something else
     (out / "cells").mkdir(parents=True)
     (out / "cells" / "NIRL-run000.json").write_text("{}")
     assert main(["suite", "--task", str(path), "--out", str(out), "--check", "--quick"]) == 0
+    assert "holds no nirl-mj experiment: a run would refuse it" in capsys.readouterr().out
+    (out / "experiment.json").write_text(json.dumps(load_experiment(path, quick=True).identity()))
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check", "--quick"]) == 0
     text = capsys.readouterr().out
-    assert "(--quick)" in text and "runs 1 (seeds 7..7)" in text and "1 finished cell(s) there" in text
+    assert (
+        "(--quick)" in text and "runs 1 (seeds 7..7)" in text and "holds this experiment, 1 finished" in text
+    )
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 0
+    assert "holds another experiment (it differs in: tests)" in capsys.readouterr().out
+    # what a run refuses before it starts, --check refuses too
+    for flags, message in ((["--only", "NOPE"], "--only NOPE: not a method"),
+                           (["--points", "3"], "--points picks values of a training axis"),
+                           (["--restore", str(tmp_path / "none")], "no such directory"),
+                           (["--runs", "3"], None)):  # fmt: skip
+        code = main(["suite", "--task", str(path), "--out", str(tmp_path / "o2"), "--check", *flags])
+        assert code == (0 if message is None else 2) and (
+            message is None or message in capsys.readouterr().err
+        )
+    path.write_text(path.read_text().replace("seed = 7", f"seed = {2**32 - 3}"))
+    assert main(["suite", "--task", str(path), "--out", str(out), "--check", "--runs", "4"]) == 2
+    assert "--runs with the file's seed = 4294967293 with runs = 4" in capsys.readouterr().err
     path.write_text(path.read_text() + "[quick.demos]\nepisodez = 3\n")
     assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 2
     assert "quick.demos: unknown key(s) episodez" in capsys.readouterr().err

@@ -24,7 +24,7 @@ from nirl_mj.data.rundir import (
     RunError,
 )
 from nirl_mj.experiments import compare, suite, sweep
-from nirl_mj.experiments.definition import load_experiment
+from nirl_mj.experiments.definition import ExperimentError, check_seed_range, load_experiment
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import default_workers
@@ -590,15 +590,17 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     experiment = load_experiment(args.task, args.quick, args.command)
     if args.runs is not None:
         experiment = dataclasses.replace(experiment, runs=args.runs)
+        check_seed_range(experiment, "--runs with the file's seed")
     out = Path(args.out or f"runs/{experiment.name}{'-quick' if args.quick else ''}")
-    if args.check:
-        print(_plan_text(experiment, out))
-        return 0
     only, points = (tuple(n.strip() for n in (getattr(args, key, None) or "").split(",") if n.strip())
                     for key in ("only", "points"))  # fmt: skip
     execution = Execution(args.executor, args.workers, args.address, args.retries, args.report,
                           getattr(args, "reuse", None), only, points,
                           restore=getattr(args, "restore", None))  # fmt: skip
+    if args.check:
+        _check_flags(args, experiment, execution)
+        print(_plan_text(experiment, out))
+        return 0
     bars: list[_LazyBar] = []  # made once the number of cells is known
 
     def log(text: str) -> None:
@@ -633,17 +635,36 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     return 1 if summary["failures"] else 0
 
 
+def _check_flags(args: argparse.Namespace, experiment, execution: Execution) -> None:
+    """``--check``: what a run refuses before it starts, of the flags given with the file."""
+    execution.check_methods(experiment)  # --only names, the optional packages of the methods run
+    if args.command == "suite":
+        suite.at_points(experiment, execution)
+    for flag in ("reuse", "restore"):
+        where = getattr(args, flag, None)
+        if where and not Path(where).is_dir():
+            raise ExperimentError(f"--{flag} {where}: no such directory")
+
+
 def _plan_text(experiment, out: Path) -> str:
     """``--check``: what a valid experiment file would run, and what its output directory holds."""
+    from nirl_mj.experiments.protocol import output_state
     from nirl_mj.experiments.reads import is_reference, method_reads
 
     e = experiment
+    axes = {a.name: a for a in e.axes}
     demos = f"{e.demos} by the {e.expert} expert, {'a set per run' if e.demos_per_run else 'one set'}"
-    lines = [f"{e.source}: a valid {e.kind} experiment{' (--quick)' if e.quick else ''}: {e.description}",
+    for name in ("demonstrations", "demonstrator"):
+        demos += f" ({name}: the axis's values)" if name in axes else ""
+    lines = [f"{e.source}: a valid {e.kind} experiment{' (--quick)' if e.quick else ''}"
+             + (f": {e.description}" if e.description else ""),
              f"runs {e.runs} (seeds {e.seed}..{e.seed + e.runs - 1}), {e.tests} test arenas each from the "
              f"{e.test_domain!r} domain; demonstrations: {demos}",
-             f"task {e.task.name}, tests on {e.test_task.name}",
-             *(f"axis {a.name}: {', '.join(map(str, a.values))}" for a in e.axes)]  # fmt: skip
+             f"task {e.task.name}, tests on {e.test_task.name}"]  # fmt: skip
+    for a in e.axes:
+        own = a.test_task is not None and a.test_task != e.test_task
+        lines.append(f"axis {a.name}{f' (tests on {a.test_task.name})' if own else ''}: "
+                     f"{', '.join(map(str, a.values))}")  # fmt: skip
     if e.kind == "sweep":
         lines.append(f"cells: {len(e.obstacles)} obstacle counts x {len(e.speeds)} speeds")
     lines.append(f"methods ({len(e.methods)}):")
@@ -651,10 +672,7 @@ def _plan_text(experiment, out: Path) -> str:
         reads = method_reads(m, e.config)
         lines.append(f"  {m.name} ({m.kind}{', a reference' if is_reference(reads) else ''}): reads "
                      f"{', '.join(reads) or 'nothing'}")  # fmt: skip
-    cells = out / "cells"
-    held = len(list(cells.glob("*.json"))) if cells.is_dir() else 0
-    where = f"{held} finished cell(s) there: a run resumes them if the experiment is the same"
-    lines.append(f"output: {out} ({where if out.exists() else 'does not exist yet'})")
+    lines.append(f"output: {out} ({output_state(out, e)})")
     return "\n".join(lines)
 
 

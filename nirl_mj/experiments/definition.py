@@ -399,7 +399,7 @@ def from_dict(
         """Where a key's value came from, for error messages."""
         return f"{source}: {'quick.' if key in quick_keys else ''}{key}"
 
-    base = base or Path(".")
+    base = base or specs.TASKS_DIR.parent  # a dict from no file: relative paths are the checkout's
 
     overrides = _table(data.get("set", {}), where("set"))
     _known(overrides, SET_SECTIONS, where("set"), "")
@@ -451,9 +451,7 @@ def from_dict(
         test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
         axes=_axes(data, test_task, base, where, overrides) if kind == "suite" else (),
     )  # fmt: skip
-    if experiment.seed + experiment.runs - 1 >= SEED_LIMIT:
-        raise ExperimentError(f"{where('seed')} = {experiment.seed} with runs = {experiment.runs}: the run "
-                              "seeds seed .. seed + runs - 1 must stay in 0 .. 2^32 - 1")  # fmt: skip
+    check_seed_range(experiment, where("seed"))
     check_actions(experiment.methods, (experiment.task, experiment.test_task), source)
     if kind == "sweep":
         rl = [m.name for m in methods if m.kind == "rl"]
@@ -473,8 +471,18 @@ def from_dict(
                 except SpecError as exc:
                     raise ExperimentError(f"{source}: cell ({n} obstacles, {v} m/s): {exc}") from None
     if not quick and "quick" in data:  # a mistake in [quick] is found now, not at the first --quick
-        from_dict(data, source, base, quick=True)
+        try:
+            from_dict(data, source, base, quick=True)
+        except ExperimentError as exc:
+            raise ExperimentError(f"{exc} (in the file's --quick run: its [quick] table)") from None
     return experiment
+
+
+def check_seed_range(experiment: Experiment, where: str) -> None:
+    """Refuses run seeds ``seed .. seed + runs - 1`` beyond 2^32 - 1 (:data:`seeds.SEED_LIMIT`)."""
+    if experiment.seed + experiment.runs - 1 >= SEED_LIMIT:
+        raise ExperimentError(f"{where} = {experiment.seed} with runs = {experiment.runs}: the run seeds "
+                              "seed .. seed + runs - 1 must stay in 0 .. 2^32 - 1")  # fmt: skip
 
 
 def _axes(data: dict, test_task: specs.TaskSpec, base: Path, where, overrides: dict) -> tuple[Axis, ...]:

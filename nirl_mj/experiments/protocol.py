@@ -77,19 +77,8 @@ def open_output(out: str | Path, experiment: Experiment, record: bool = True) ->
     marker = out / EXPERIMENT_FILE
     identity = experiment.identity()
     if marker.is_file():
-        try:
-            saved = json.loads(marker.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
-        if not isinstance(saved, dict):
-            raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
-        was, now = unspelled_identity(saved), unspelled_identity(identity)
-        # every key either holds: one written only when set (test_domain, demos_per_run) differs when
-        # it goes back to its default too ("runs", in identities of old, was never part of one)
-        differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
-        if differ and not (
-            set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
-        ):
+        differ, grown = recorded_differences(out, experiment)
+        if differ and not grown:
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "
@@ -108,6 +97,43 @@ def open_output(out: str | Path, experiment: Experiment, record: bool = True) ->
 
     write_text(marker, json.dumps(identity, indent=1))
     return out
+
+
+def recorded_differences(out: Path, experiment: Experiment) -> tuple[list[str], bool]:
+    """The identity keys in which the experiment recorded in OUT differs from ``experiment``, and
+    whether the differences only grow it (methods added, :func:`grows`): a run resumes OUT then."""
+    marker = out / EXPERIMENT_FILE
+    try:
+        saved = json.loads(marker.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ExperimentError(f"{marker} is corrupted ({exc}); choose another --out") from None
+    if not isinstance(saved, dict):
+        raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
+    identity = experiment.identity()
+    was, now = unspelled_identity(saved), unspelled_identity(identity)
+    # every key either holds: one written only when set (test_domain, demos_per_run) differs when
+    # it goes back to its default too ("runs", in identities of old, was never part of one)
+    differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
+    grown = set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
+    return differ, bool(differ) and grown
+
+
+def output_state(out: str | Path, experiment: Experiment) -> str:
+    """What OUT holds for ``experiment`` (``--check``): nothing yet, this experiment (and how many
+    finished cells), or something a run would refuse."""
+    out = Path(out)
+    if not out.exists():
+        return "does not exist yet"
+    if (out / EXPERIMENT_FILE).is_file():
+        differ, grown = recorded_differences(out.resolve(), experiment)
+        if differ and not grown:
+            return f"holds another experiment (it differs in: {', '.join(differ)}): a run would refuse it"
+        cells = len(list((out / "cells").glob("*.json"))) if (out / "cells").is_dir() else 0
+        grew = " (grown by new methods)" if grown else ""
+        return f"holds this experiment{grew}, {cells} finished cell(s): a run resumes them"
+    if not out.is_dir() or any(out.iterdir()):
+        return "exists and holds no nirl-mj experiment: a run would refuse it"
+    return "an empty directory"
 
 
 def unspelled_identity(identity: dict) -> dict:

@@ -91,7 +91,7 @@ def run_suite(
 
     execution = execution or Execution()
     execution.check_methods(experiment)  # before anything is made in OUT
-    _at_points(experiment, execution)  # a bad --points too
+    at_points(experiment, execution)  # a bad --points too
     if execution.reuse:
         raise ExperimentError("--reuse takes cells of compare experiments only")
     execution.check_output(out)
@@ -107,7 +107,7 @@ def run_suite(
         cells = test_cells(experiment, out, execution, workers, log)
     with execution.start(out, log) as runner:
         report = runner.run_only(
-            cells, execution.only, on_start, on_done, also=_at_points(experiment, execution)
+            cells, execution.only, on_start, on_done, also=at_points(experiment, execution)
         )
     rows = tidy_rows(experiment, report.results)
     summary = summarise(experiment, rows)
@@ -118,7 +118,7 @@ def run_suite(
     return summary
 
 
-def _at_points(experiment: Experiment, execution: Execution) -> Callable | None:
+def at_points(experiment: Experiment, execution: Execution) -> Callable | None:
     """``--points``: whether a cell is at one of the given values of the training axis (the cells that
     hold at every value too); None without ``--points``."""
     if not execution.points:

@@ -241,7 +241,8 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
 
     _check_id(dataset_id)
     # minari's own lookup makes its datasets folder (~/.minari/datasets): a failing one must not
-    root = Path(os.environ.get("MINARI_DATASETS_PATH") or Path.home() / ".minari" / "datasets")
+    given = os.environ.get("MINARI_DATASETS_PATH")  # minari's rule: set (even empty) is used
+    root = Path(given) if given is not None else Path.home() / ".minari" / "datasets"
     if not root.is_dir():
         raise MinariError(f"no local Minari dataset {dataset_id!r} (no datasets folder {root}); write one "
                           "with nirl-mj export D.npz --to minari --id ID")  # fmt: skip

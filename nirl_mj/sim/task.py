@@ -233,9 +233,9 @@ class NavigationTask(composer.Task):
         20 % to spare) plus ``self._hidden_margin``, what the gaps between rays can
         hide (0.5 m, plus half the gap between neighbouring rays at full range: a
         box corner can poke at most that far between two rays). That bound holds for
-        obstacles wider than the gap between rays (every generated one); an explicit one
-        thinner than that can hide entirely, and the end-of-decision check in after_step
-        catches its contact.
+        obstacles wider than the gap between rays where they stand; a thinner one can hide
+        entirely (a 0.5 m wall end-on, beyond about 3.4 m: farther than a decision travels at
+        5 m/s), and the end-of-decision check in after_step catches its contact.
         """
         if self._spec.arena.moving_obstacles:
             return False
