@@ -652,10 +652,9 @@ def _plan_text(experiment, out: Path) -> str:
     from nirl_mj.experiments.reads import is_reference, method_reads
 
     e = experiment
-    axes = {a.name: a for a in e.axes}
     demos = f"{e.demos} by the {e.expert} expert, {'a set per run' if e.demos_per_run else 'one set'}"
-    for name in ("demonstrations", "demonstrator"):
-        demos += f" ({name}: the axis's values)" if name in axes else ""
+    for axis in (a for a in e.axes if a.trains):  # demonstrations or demonstrator
+        demos += f" ({axis.name}: the axis's values)"
     lines = [f"{e.source}: a valid {e.kind} experiment{' (--quick)' if e.quick else ''}"
              + (f": {e.description}" if e.description else ""),
              f"runs {e.runs} (seeds {e.seed}..{e.seed + e.runs - 1}), {e.tests} test arenas each from the "

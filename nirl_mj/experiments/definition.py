@@ -741,7 +741,7 @@ def _paper(table: Any, methods: tuple[MethodSpec, ...], where: str, full_methods
     return out
 
 
-def _task(value: Any, base: Path, overrides: dict, where: str, set_where: str = "set") -> specs.TaskSpec:
+def _task(value: Any, base: Path, overrides: dict, where: str, set_where: str) -> specs.TaskSpec:
     """The task ``value`` names, changed by ``overrides`` (the experiment's ``[set]``, found at
     ``set_where`` for messages)."""
     name = _str(value, where)
