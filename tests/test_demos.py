@@ -124,6 +124,23 @@ def test_cli_demos_then_inspect(tmp_path, capsys):
     assert "valid nirl-mj dataset" in capsys.readouterr().out
 
 
+def test_inspect_summarises_a_dataset_whose_first_half_holds_no_decision(tmp_path, capsys):
+    import dataclasses
+
+    from nirl_mj.data.dataset import save_dataset
+
+    task = spec.replace(spec.load_task("navigate"), robot={"drive": "planar"}, control={"step_budget": 6})
+    episodes = collect(task, ExpertConfig("rule"), episodes=2, seed=0)
+    first = episodes[0]
+    one_state = {name: getattr(first, name)[:1] for name in ("features", "ranges", "poses", "times")}
+    empty = dataclasses.replace(first, actions=first.actions[:0], **one_state)
+    save_dataset(tmp_path / "d.npz", [empty, episodes[1]])
+    assert main(["inspect", str(tmp_path / "d.npz"), "--json"]) == 0
+    out = capsys.readouterr().out
+    assert "valid nirl-mj dataset" in out and "predictability: not measured" in out
+    assert out.strip().splitlines()[-1].startswith("{")
+
+
 def test_cli_inspect_bad_file_is_a_clear_error(tmp_path, capsys):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a dataset")

@@ -257,7 +257,8 @@ def test_an_output_or_a_resume_of_the_wrong_kind_is_refused_by_name(tmp_path, ca
     nirl.mkdir()
     from nirl_mj.data.rundir import RECORD_KEYS
 
-    (nirl / "run.json").write_text(json.dumps(dict.fromkeys(RECORD_KEYS, 0)))  # a record without kind "rl"
+    record = {**dict.fromkeys(RECORD_KEYS, 0), "demos": None, "demo_seeds": [], "validation_seeds": []}
+    (nirl / "run.json").write_text(json.dumps(record))  # a record without kind "rl"
     refused(capsys, ["rl", "--out", str(nirl), "--resume"], "not of `nirl-mj rl`", "nirl-mj train")
     refused(capsys, ["compare", "--task", "navigate", "--report"], "is a task file, not an experiment")
     refused(capsys, ["demos", "--expert", "sensor", "--slip", "0.5", "--out", str(tmp_path / "n.npz")],

@@ -476,6 +476,66 @@ def test_a_damaged_metrics_line_is_one_error_naming_the_file_and_line(finished, 
         RunDir(run).read_metrics()
 
 
+WRONG_TYPES = [("seed", "abc", "seed = 'abc', not a whole number"), ("seed", 1.5, "seed = 1.5"),
+               ("demos", 5, "demos = 5"), ("train_seeds", "oops", "train_seeds is not a list"),
+               ("demo_seeds", None, "demo_seeds is not a list")]  # fmt: skip
+
+
+@pytest.mark.parametrize(("key", "value", "needle"), WRONG_TYPES)
+def test_a_run_record_of_the_wrong_types_is_refused(finished, tmp_path, capsys, key, value, needle):
+    import json
+
+    run = copy_of(finished, tmp_path)
+    record = json.loads((run / RUN_FILE).read_text())
+    (run / RUN_FILE).write_text(json.dumps({**record, key: value}))
+    before = digests(run)
+    assert main(["eval", "--run", str(run), "--tests", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{RUN_FILE} is corrupted: {needle}" in err and "Traceback" not in err
+    assert digests(run) == before
+
+
+def test_a_torn_metrics_row_is_not_counted_as_an_iteration(finished, tmp_path):
+    from nirl_mj.data.rundir import RunDir
+
+    run = copy_of(finished, tmp_path)
+    text = (run / METRICS_FILE).read_text()
+    assert RunDir(run).iterations_done() == 3
+    (run / METRICS_FILE).write_text(text[:-40])  # the last row cut (disk damage, a hand edit)
+    assert RunDir(run).iterations_done() == 2 == len(RunDir(run).read_metrics())
+
+
+def test_policy_weights_that_are_not_finite_are_refused_naming_the_file(finished, tmp_path, capsys):
+    """A damaged policy (NaN weights) is one error line, never an evaluation of a broken network;
+    the same for a kept policy of the checkpoint (--which N)."""
+    run = copy_of(finished, tmp_path)
+    for name, key in ((POLICY_FILE, "selected/W1"), (CHECKPOINT_FILE, "kept_W2")):
+        with np.load(run / name) as stored:
+            arrays = {k: stored[k] for k in stored.files}
+        arrays[key] = np.full_like(arrays[key], np.nan)
+        np.savez(run / name, **arrays)
+    before = digests(run)
+    assert main(["eval", "--run", str(run), "--tests", "1", "--quiet"]) == 2
+    assert "policy.npz's selected policy is corrupted: W1 is not finite" in capsys.readouterr().err
+    assert main(["eval", "--run", str(run), "--which", "1", "--tests", "1", "--quiet"]) == 2
+    assert "checkpoint.npz's policy of iteration 1 is corrupted: W2 is not finite" in capsys.readouterr().err
+    assert digests(run) == before
+
+
+def test_a_dataset_whose_task_record_lacks_what_readers_take_from_it_is_refused(demos, tmp_path, capsys):
+    import json
+
+    with np.load(demos) as stored:
+        arrays = {k: stored[k] for k in stored.files}
+    tasks = [json.loads(text) for text in arrays["tasks"].tolist()]
+    del tasks[0]["sensing"]  # the task file's rules would fill in its defaults
+    arrays["tasks"] = np.array([json.dumps(task) for task in tasks])
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    assert main(["inspect", str(bad)]) == 2
+    assert "tasks[0] lacks sensing.range, sensing.danger7_clearance" in capsys.readouterr().err
+
+
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_any_damage_to_any_stored_file_is_refused_in_one_line_never_a_traceback(

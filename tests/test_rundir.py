@@ -17,7 +17,7 @@ def test_a_run_directory_round_trips_its_files(tmp_path):
     assert run.iterations_done() == 3
     run.keep_metrics(2)  # what a resume does with a row past the checkpoint
     assert run.read_metrics() == [{"episode": 0}, {"episode": 1}]
-    w = {"W1": np.arange(6.0).reshape(2, 3), "W2": np.ones(2)}
+    w = {"W1": np.arange(6.0).reshape(2, 3), "W2": np.ones((6, 3))}
     run.write_checkpoint({"theta": np.zeros(3)})
     run.write_policy(w, {k: -v for k, v in w.items()})
     np.testing.assert_array_equal(run.read_policy("last")["W1"], -w["W1"])

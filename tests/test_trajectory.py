@@ -89,6 +89,11 @@ def test_trajectory_helpers(trajs):
         ("poses", np.zeros((4, 2))),
         ("times", np.zeros(3)),
         ("actions", np.zeros((3, 1))),
+        # discrete actions are checked as given, before the cast to int8 would wrap or cut them
+        ("actions", np.array([0, 256, 1])),
+        ("actions", np.array([0, 2.7, 1])),
+        ("actions", np.array([0, np.nan, 1])),
+        ("actions", np.array([True, False, True])),
     ],
 )
 def test_trajectory_shape_errors_name_the_field(field, value):

@@ -79,7 +79,11 @@ def _summary(trajectories: list, summary: dict) -> dict | None:
     predictability from phi(s) (a classifier of the six actions)."""
     print(summary_lines(summary))
     discrete = summary.get("action_kind", "discrete") == "discrete"
-    pred = predictability(trajectories) if len(trajectories) >= 2 and discrete else None
+    try:
+        pred = predictability(trajectories) if len(trajectories) >= 2 and discrete else None
+    except ValueError as exc:  # a half of the episodes without a decision: a valid dataset all the same
+        print(f"predictability: not measured ({exc})")
+        pred = None
     if pred:
         print(predictability_line(pred))
     return pred

@@ -467,6 +467,11 @@ def _check_outcomes(a: Mapping[str, np.ndarray]) -> None:
 
 
 TASK_RULES: list[Callable[[dict, str], object]] = []
+READ_TASK_KEYS = (("arena", "target"), ("arena", "target_radius"), ("control", "speed"),
+                  ("control", "decision_period"), ("sensing", "range"),
+                  ("sensing", "danger7_clearance"))  # fmt: skip
+"""The keys of a task record that readers of trajectories take from it directly (``data.outcomes``,
+``data.transitions``, ``inspect.recording``)."""
 """Checks of a task record beyond its shape, each ``rule(task, where)`` raising ``ValueError``:
 the task file's rules live in ``nirl_mj.sim.spec``, which registers them here when imported (the
 data layer cannot import the simulation's), so a record with a negative speed or an unknown key is
@@ -484,6 +489,10 @@ def _check_tasks(a: Mapping[str, np.ndarray]) -> None:
             raise _Invalid(f"tasks[{i}] is not valid JSON: {exc}") from None
         if not isinstance(task, dict):
             raise _Invalid(f"tasks[{i}] is not a JSON object (a TaskSpec.to_dict())")
+        missing = [".".join(key) for key in READ_TASK_KEYS if not isinstance(task.get(key[0]), dict)
+                   or key[1] not in task[key[0]]]  # fmt: skip
+        if missing:  # the task file's rules fill in defaults; these are read from the record as it is
+            raise _Invalid(f"tasks[{i}] lacks {', '.join(missing)} (a TaskSpec.to_dict() holds them)")
         for rule in TASK_RULES:
             try:
                 rule(task, f"tasks[{i}]")

@@ -118,6 +118,9 @@ class RunDir:
         missing = [key for key in RECORD_KEYS if key not in record]
         if missing:
             raise RunError(f"{path} is corrupted or not a run record: it lacks {', '.join(missing)}")
+        wrong = _record_type_problem(record)
+        if wrong:
+            raise RunError(f"{path} is corrupted: {wrong}")
         return record
 
     def write_record(self, record: Mapping[str, Any]) -> None:
@@ -147,9 +150,11 @@ class RunDir:
         return rows
 
     def iterations_done(self) -> int:
-        """Metrics rows written so far (finished iterations, possibly one past the checkpoint)."""
+        """Metrics rows written so far (finished iterations, possibly one past the checkpoint); a
+        row without its newline (torn) is not one: each row is appended with its newline at once."""
         path = self.file(METRICS_FILE)
-        return len(path.read_text().splitlines()) if path.exists() else 0
+        lines = path.read_text(errors="replace").splitlines(keepends=True) if path.exists() else []
+        return sum(line.endswith("\n") for line in lines)
 
     def start_metrics(self) -> None:
         write_text(self.file(METRICS_FILE), "")
@@ -187,7 +192,9 @@ class RunDir:
                 f"{self.path} has no {POLICY_FILE}: its training has not finished (resume it with --resume)"
             )
         arrays = self._read_npz(path, "train the run again")
-        return {k.split("/", 1)[1]: v for k, v in arrays.items() if k.startswith(which + "/")}
+        weights = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.startswith(which + "/")}
+        check_weights(weights, f"{path}'s {which} policy", "train the run again")
+        return weights
 
     def write_policy(self, selected: Mapping[str, np.ndarray], last: Mapping[str, np.ndarray]) -> None:
         arrays = {f"selected/{k}": v for k, v in selected.items()}
@@ -251,6 +258,33 @@ class RunDir:
         with DirectoryLock(self.file(EVAL_FILE), "eval", wait=True):
             evaluations = {**self.read_evaluations(), key: dict(result)}
             write_text(self.file(EVAL_FILE), json.dumps(evaluations, indent=1))
+
+
+def _is_seed(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _record_type_problem(record: Mapping[str, Any]) -> str | None:
+    """What in a run record has the wrong type (the keys every reader takes as they are), or None."""
+    if not _is_seed(record["seed"]):
+        return f"seed = {record['seed']!r}, not a whole number >= 0"
+    if record["demos"] is not None and not isinstance(record["demos"], str):
+        return f"demos = {record['demos']!r}, not a path"
+    for key in ("demo_seeds", "validation_seeds", "train_seeds"):
+        seeds = record.get(key, [])
+        if not isinstance(seeds, list) or not all(_is_seed(s) for s in seeds):
+            return f"{key} is not a list of arena seeds"
+    return None
+
+
+def check_weights(weights: Mapping[str, np.ndarray], what: str, fix: str) -> None:
+    """Refuses a network's weights (``W1``, ``W2``) that are missing, not 2-d or not finite."""
+    for name in ("W1", "W2"):
+        w = weights.get(name)
+        if w is None or np.ndim(w) != 2 or not np.issubdtype(np.asarray(w).dtype, np.floating):
+            raise RunError(f"{what} is corrupted: no 2-d float array {name}; {fix}")
+        if not np.all(np.isfinite(w)):
+            raise RunError(f"{what} is corrupted: {name} is not finite; {fix}")
 
 
 def _json_object(path: Path) -> dict[str, Any]:

@@ -31,6 +31,19 @@ CONTINUOUS_DIM = 2
 """A continuous action's length: the shares of the forward speed and of the yaw rate."""
 
 
+def _check_indices(value: Any) -> None:
+    """Discrete actions as given: whole numbers in 0..5 (of any integer or float type)."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"Trajectory.actions: cannot convert to action indices: {exc}") from None
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"Trajectory.actions: expected indices 0..{N_ACTIONS - 1}, got dtype {raw.dtype}")
+    if raw.size and not (np.all(np.isfinite(raw)) and np.all(raw == np.round(raw))
+                         and raw.min() >= 0 and raw.max() < N_ACTIONS):  # fmt: skip
+        raise ValueError(f"Trajectory.actions: values must be whole numbers in 0..{N_ACTIONS - 1}")
+
+
 def _frozen_array(value: Any, dtype: type, name: str) -> np.ndarray:
     """``value`` as a read-only array of ``dtype``; a read-only *view* so that the
     caller's own array keeps its flags."""
@@ -106,6 +119,8 @@ class Trajectory:
 
         put("features", _frozen_array(self.features, np.float32, "features"))
         continuous = np.ndim(self.actions) == 2  # (T, 2) shares; (T,) indices
+        if not continuous:  # checked before the cast to int8, which would wrap 256 to 0 and cut 2.7 to 2
+            _check_indices(self.actions)
         put("actions", _frozen_array(self.actions, np.float32 if continuous else np.int8, "actions"))
         put("ranges", _frozen_array(self.ranges, np.float32, "ranges"))
         put("poses", _frozen_array(self.poses, np.float64, "poses"))
@@ -126,11 +141,8 @@ class Trajectory:
                 raise ValueError(
                     f"Trajectory.{name}: expected shape {shape} for T = {t} actions (T + 1 states), got {got}"
                 )
-        if continuous:
-            if not shares_in_range(self.actions):
-                raise ValueError("Trajectory.actions: continuous actions are finite shares in [-1, 1]")
-        elif t and (self.actions.min() < 0 or self.actions.max() >= N_ACTIONS):
-            raise ValueError(f"Trajectory.actions: values must be in 0..{N_ACTIONS - 1}")
+        if continuous and not shares_in_range(self.actions):
+            raise ValueError("Trajectory.actions: continuous actions are finite shares in [-1, 1]")
         seed = self.arena_seed
         if isinstance(seed, np.integer):
             seed = int(seed)

@@ -22,7 +22,15 @@ import numpy as np
 from nirl_mj.data.atomic import leftover_temporaries
 from nirl_mj.data.dataset import dataset_digest, load_dataset
 from nirl_mj.data.lock import DirectoryLock
-from nirl_mj.data.rundir import CHECKPOINT_FILE, METRICS_FILE, REWARD_FILE, RUN_FILE, RunDir, RunError
+from nirl_mj.data.rundir import (
+    CHECKPOINT_FILE,
+    METRICS_FILE,
+    REWARD_FILE,
+    RUN_FILE,
+    RunDir,
+    RunError,
+    check_weights,
+)
 from nirl_mj.data.trajectory import Trajectory, require_discrete
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.reads import learner_reads
@@ -95,7 +103,10 @@ def load_policy(run_dir: str | os.PathLike, which: str = "selected") -> tuple[Po
         kept = len(state["scores"])
         if i >= kept:
             raise RunError(f"{run} kept {kept} policies (iterations 0-{kept - 1}); there is no iteration {i}")
-        weights = {k: state[f"kept_{k}"][i] for k in ("W1", "W2")}
+        weights = {k: state[f"kept_{k}"][i] for k in ("W1", "W2") if f"kept_{k}" in state}
+        check_weights(
+            weights, f"{run.file(CHECKPOINT_FILE)}'s policy of iteration {i}", "train the run again"
+        )
     else:
         weights = run.read_policy(which)
     return _greedy(weights, run_config(record)), record

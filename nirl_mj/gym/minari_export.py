@@ -246,15 +246,16 @@ def load_minari(dataset_id: str) -> list[Trajectory]:
     if not root.is_dir():
         raise MinariError(f"no local Minari dataset {dataset_id!r} (no datasets folder {root}); write one "
                           "with nirl-mj export D.npz --to minari --id ID")  # fmt: skip
-    if dataset_id not in minari.list_local_datasets():
-        raise MinariError(f"no local Minari dataset {dataset_id!r} (local: "
-                          f"{', '.join(sorted(minari.list_local_datasets())) or 'none'}); write one with "
-                          "nirl-mj export D.npz --to minari --id ID")  # fmt: skip
-    try:
+    try:  # the listing reads every local dataset's metadata, so it too meets a damaged one
+        local = minari.list_local_datasets()
+        if dataset_id not in local:
+            names = ", ".join(sorted(local)) or "none"
+            raise MinariError(f"no local Minari dataset {dataset_id!r} (local: {names}); write one with "
+                              "nirl-mj export D.npz --to minari --id ID")  # fmt: skip
         return _trajectories(minari.load_dataset(dataset_id), dataset_id)
     except MinariError:
         raise
-    except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
+    except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError, RuntimeError) as exc:
         # h5py and minari raise these on a damaged store: name the dataset and where it lies
         from minari.storage import get_dataset_path
 
