@@ -86,6 +86,14 @@ def test_runs_are_never_overwritten_or_mixed(tmp_path, demos):
         train(run, TINY, demos, config, seed=0)
     with pytest.raises(RunError, match="trained with another config"):
         train(run, TINY, demos, tiny_config(episodes=1, eta=7.5), seed=0, resume=True)
+    # a folder without a run record: neither a new run nor a resume, and each says so
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / CHECKPOINT_FILE).write_bytes(before)
+    with pytest.raises(RunError, match="holds no run of nirl-mj train .no run.json.: nothing there can be"):
+        train(other, TINY, demos, config, seed=0)
+    with pytest.raises(RunError, match="not a nirl-mj run directory"):
+        train(other, TINY, demos, config, seed=0, resume=True)
     with pytest.raises(RunError, match="trained with another task"):
         train(run, spec.replace(TINY, control={"speed": 3.0}), demos, config, seed=0, resume=True)
     assert (run / CHECKPOINT_FILE).read_bytes() == before

@@ -89,6 +89,10 @@ def damaged(run: Path, **changes) -> None:
         ({"theta": lambda t: t[:-1]}, "theta: shape"),
         ({"scores": np.array([0.5, 0.5])}, "scores: shape (2,), expected (3,)"),
         ({"iteration": np.array(2.5)}, "iteration: array(2.5) is not a whole number"),
+        ({"stopped": np.array("no")}, "stopped: array('no', dtype='<U2') is not true or false"),
+        ({"replay_action": lambda a: np.where(np.arange(a.size) == 0, 99, a)},
+         "replay_action: not all actions 0..5"),
+        ({"replay_next_action": lambda a: a - 9}, "replay_next_action: not all actions -1..5"),
     ],
 )  # fmt: skip
 def test_a_resume_from_a_damaged_checkpoint_is_refused_and_changes_nothing(
@@ -496,13 +500,17 @@ def test_a_run_record_of_the_wrong_types_is_refused(finished, tmp_path, capsys, 
 
 
 def test_a_torn_metrics_row_is_not_counted_as_an_iteration(finished, tmp_path):
-    from nirl_mj.data.rundir import RunDir
+    from nirl_mj.data.rundir import RunDir, RunError
 
     run = copy_of(finished, tmp_path)
     text = (run / METRICS_FILE).read_text()
     assert RunDir(run).iterations_done() == 3
     (run / METRICS_FILE).write_text(text[:-40])  # the last row cut (disk damage, a hand edit)
     assert RunDir(run).iterations_done() == 2 == len(RunDir(run).read_metrics())
+    (run / METRICS_FILE).write_bytes(text.encode() + b"\xff\n")  # not UTF-8: named, and left as it is
+    with pytest.raises(RunError, match=r"metrics.jsonl is corrupted \(not UTF-8 text"):
+        RunDir(run).keep_metrics(3)
+    assert (run / METRICS_FILE).read_bytes().endswith(b"\xff\n")
 
 
 def test_policy_weights_that_are_not_finite_are_refused_naming_the_file(finished, tmp_path, capsys):

@@ -168,7 +168,11 @@ class RunDir:
     def keep_metrics(self, iterations: int) -> None:
         """Keeps the first ``iterations`` rows (those the checkpoint covers)."""
         path = self.file(METRICS_FILE)
-        lines = path.read_text().splitlines(keepends=True) if path.exists() else []
+        try:
+            lines = path.read_text().splitlines(keepends=True) if path.exists() else []
+        except UnicodeDecodeError as exc:
+            raise RunError(f"{path} is corrupted (not UTF-8 text: {exc}); the run is left as it is: "
+                           "train it again in another --out") from None  # fmt: skip
         write_text(path, "".join(lines[:iterations]))
 
     # -- arrays ----------------------------------------------------------------------------

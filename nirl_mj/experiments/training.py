@@ -196,6 +196,9 @@ def _train(
         # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
         resume = run.has_checkpoint
     elif not run.is_empty():
+        if not run.is_run:  # a resume would find no record to continue either
+            raise RunError(f"{run} exists and holds no run of nirl-mj train (no {RUN_FILE}): nothing there "
+                           "can be continued; choose another --out")  # fmt: skip
         raise RunError(
             f"{run} exists and is not empty; pass --resume to continue it, or choose another --out"
         )

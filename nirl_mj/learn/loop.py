@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.data.outcomes import outcome_rates
 from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, stack_pairs
 from nirl_mj.data.transitions import Transitions
@@ -391,11 +392,18 @@ class IrlLoop:
                 )
             if np.issubdtype(value.dtype, np.floating) and not np.all(np.isfinite(value)):
                 raise ValueError(f"{name}: not all finite numbers")
+        for name, low in (("replay_action", 0), ("replay_next_action", -1)):  # -1: no next action
+            value = np.asarray(state.get(name, np.zeros(0, int)))
+            if value.size and (not np.issubdtype(value.dtype, np.integer) or value.min() < low
+                               or value.max() >= N_ACTIONS):  # fmt: skip
+                raise ValueError(f"{name}: not all actions {low}..{N_ACTIONS - 1}")
+        stopped = field("stopped")
+        if stopped.shape != () or stopped.dtype != bool:
+            raise ValueError(f"stopped: {stopped!r} is not true or false")
         try:
             json.loads(str(field("rng")))
-            bool(field("stopped"))
         except (ValueError, TypeError) as exc:
-            raise ValueError(f"rng or stopped: unreadable ({exc})") from None
+            raise ValueError(f"rng: unreadable ({exc})") from None
 
     def load_state(self, state: dict[str, np.ndarray]) -> None:
         """Continues from ``state`` (:meth:`state`), checked first (:meth:`check_state`)."""
