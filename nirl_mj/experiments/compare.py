@@ -243,12 +243,15 @@ def csv_table(summary: dict) -> str:
 
 
 def bar_chart(path: Path, summary: dict, title: str) -> Path:
-    """Average success per method with its 95 % interval and best-worst range, the paper's next to it."""
+    """Average success per method, one row each in the table's order, with its 95 % interval and its
+    best and worst run; the paper's row beside it (hatched) where the experiment gives one."""
     from nirl_mj.inspect.canvas import subplots
 
     names = list(summary["methods"])
-    fig, ax = subplots(figsize=(max(5.0, 1.1 * len(names) + 1.5), 3.8), dpi=110)
-    width, labels = 0.38, {"this work": True, "paper (Table I)": True, "best, worst run": True}
+    paired = any((summary["methods"][n]["paper"] or {}).get("avg") is not None for n in names)
+    fig, ax = subplots(figsize=(6.6, 0.36 * len(names) * (1.5 if paired else 1) + 1.6), dpi=110)
+    height = 0.38 if paired else 0.6
+    labels = {"this work": True, "paper (Table I)": True, "best, worst run": True}
 
     def label(text: str) -> str | None:
         """Each legend entry once."""
@@ -257,35 +260,46 @@ def bar_chart(path: Path, summary: dict, title: str) -> Path:
 
     for i, name in enumerate(names):
         s = summary["methods"][name]
+        paper = s["paper"] or {}
+        offset = height / 2 if "avg" in paper else 0.0  # a row without the paper's keeps its bar centred
         if s["runs"]:
             ci = s["ci"]
             err = None if ci[0] is None else [[100 * (s["avg"] - ci[0])], [100 * (ci[1] - s["avg"])]]
-            ax.bar(i - width / 2, 100 * s["avg"], width, color="tab:blue", yerr=err, capsize=3,
-                   label=label("this work"))  # fmt: skip
-            _extremes(ax, i - width / 2, s, "tab:red", label("best, worst run"))
-        paper = s["paper"]
-        if paper and "avg" in paper:
-            ax.bar(i + width / 2, 100 * paper["avg"], width, color="white", edgecolor="tab:gray", hatch="//",
-                   label=label("paper (Table I)"))  # fmt: skip
+            ax.barh(i - offset, 100 * s["avg"], height, color="tab:blue", xerr=err, capsize=3,
+                    label=label("this work"))  # fmt: skip
+            _extremes(ax, i - offset, s, "tab:red", label("best, worst run"))
+        if "avg" in paper:
+            ax.barh(i + offset, 100 * paper["avg"], height, color="white", edgecolor="tab:gray", hatch="//",
+                    label=label("paper (Table I)"))  # fmt: skip
             if "best" in paper and "worst" in paper:
-                _extremes(ax, i + width / 2, paper, "white", None)
-    ax.set_xticks(range(len(names)), names, rotation=20 if len(names) > 6 else 0)
-    ax.set_ylabel("success (%)")
-    ax.set_ylim(0, 122)  # room for the legend above the 100 % line
-    ax.set_yticks(range(0, 101, 20))
-    ax.set_title(title, fontsize=9)
-    ax.grid(axis="y", alpha=0.3)
+                _extremes(ax, i + offset, paper, "white", None)
+    ax.set_yticks(range(len(names)), names, fontsize=9)
+    ax.invert_yaxis()  # the table's first row on top
+    ax.set_xlabel("success (%)")
+    ax.set_xlim(0, 102)
+    ax.set_xticks(range(0, 101, 10))
+    ax.set_title("\n".join(textwrap.wrap(title, 72)), fontsize=9, pad=20)  # a long title keeps in the frame
+    ax.grid(axis="x", alpha=0.3)
     if ax.get_legend_handles_labels()[0]:  # none when every cell failed
-        ax.legend(fontsize=8, loc="upper center", ncol=3)
+        ax.legend(fontsize=8, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, frameon=False)
     fig.tight_layout()
     write_figure(path, fig)
     return path
 
 
-def _extremes(ax, x: float, row: dict, face: str, label: str | None) -> None:
-    """The best and worst run as two diamonds at ``x`` (percent)."""
-    ax.plot([x, x], [100 * row["worst"], 100 * row["best"]], linestyle="none", marker="D", ms=3.5,
+def _extremes(ax, y: float, row: dict, face: str, label: str | None) -> None:
+    """The best and worst run as two diamonds on row ``y`` (percent)."""
+    ax.plot([100 * row["worst"], 100 * row["best"]], [y, y], linestyle="none", marker="D", ms=3.5,
             markerfacecolor=face, markeredgecolor="tab:red", label=label)  # fmt: skip
+
+
+def chart_title(name: str, runs: int, tests: int, summary: dict) -> str:
+    """The title of ``table.png``: the experiment, its size, a partial report's finished runs."""
+    title = f"{name}: {runs} runs x {tests} tests"
+    if summary.get("unfinished"):
+        done = sorted({str(s["runs"]) for s in summary["methods"].values()}, key=int)
+        title += f" (partial: {'-'.join(dict.fromkeys([done[0], done[-1]]))} runs finished)"
+    return title + " (bars: mean with its 95 % CI)"
 
 
 def demos_text(experiment: Experiment) -> str:
@@ -299,12 +313,9 @@ def demos_text(experiment: Experiment) -> str:
 
 def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dict) -> list[Path]:
     """table.md, table.csv, rows.csv, table.png and results.json in ``out``."""
-    title = f"{experiment.name}: {experiment.runs} runs x {experiment.tests} tests"
-    if summary.get("unfinished"):
-        done = sorted({str(s["runs"]) for s in summary["methods"].values()}, key=int)
-        title += f" (partial: {'-'.join(dict.fromkeys([done[0], done[-1]]))} runs finished)"
-    title += " (bars: mean with its 95 % CI)"
-    bar_chart(out / "table.png", summary, title)
+    bar_chart(
+        out / "table.png", summary, chart_title(experiment.name, experiment.runs, experiment.tests, summary)
+    )
     text = f"""# {experiment.name}{" (quick)" if experiment.quick else ""}: {experiment.description}
 
 {experiment.runs} runs per method, each trained with its own seed on {demos_text(experiment)}
