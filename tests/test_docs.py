@@ -3,6 +3,7 @@ README that fits a screenful of sections (issue 35)."""
 
 from __future__ import annotations
 
+import json
 import re
 import runpy
 from pathlib import Path
@@ -312,3 +313,14 @@ def test_early_stop_ties_names_the_first_and_latest_best_epoch_of_each_tied_fit(
     fits = [[0.5, 0.7, 0.7, 0.6], [0.1, 0.9], [0.3, 0.3, 0.3], [0.2, 0.8, 0.4, 0.8]]
     assert tied_fits(fits) == [(0, 2, 3), (2, 1, 3), (3, 2, 4)]
     assert tied_fits([]) == []
+
+
+def test_the_architecture_figure_shows_the_modules_as_they_are():
+    """docs/images/architecture.png holds the rooms and modules it was drawn from (a PNG text chunk):
+    a module added or moved since needs `python docs/scripts/architecture_figure.py`."""
+    from PIL import Image
+
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "architecture_figure.py"))
+    with Image.open(ROOT / "docs" / "images" / "architecture.png") as image:
+        drawn = json.loads(image.text["Description"])
+    assert drawn == script["rooms"](), "run python docs/scripts/architecture_figure.py"

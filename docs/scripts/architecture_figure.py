@@ -9,6 +9,7 @@ Run from anywhere: ``python docs/scripts/architecture_figure.py``.
 from __future__ import annotations
 
 import ast
+import json
 import textwrap
 import tomllib
 from collections import Counter
@@ -28,14 +29,14 @@ OUT = ROOT / "docs" / "images" / "architecture.png"
 
 # Where each room sits (x0, y0, x1, y1): upper rooms above lower ones; learn stands beside
 # experts and sim because it imports neither, gym beside inspect likewise.
-BOXES = {
-    "cli": (-4.0, 10.0, 4.0, 11.0),
-    "experiments": (-4.0, 7.9, 4.0, 9.2),
-    "inspect": (-4.0, 6.0, -0.6, 7.0),
-    "gym": (0.6, 6.0, 4.0, 7.0),
-    "learn": (-4.0, 1.6, -0.6, 5.2),
-    "experts": (0.6, 3.9, 4.0, 5.2),
-    "sim": (0.6, 1.6, 4.0, 3.1),
+BOXES = {  # sized for the module lists as they are (2026-11-30: experiments 27 modules, sim 14)
+    "cli": (-4.0, 11.2, 4.0, 12.2),
+    "experiments": (-4.0, 8.6, 4.0, 10.5),
+    "inspect": (-4.0, 6.3, -0.6, 7.9),
+    "gym": (0.6, 6.3, 4.0, 7.9),
+    "learn": (-4.0, 1.6, -0.6, 5.6),
+    "experts": (0.6, 4.2, 4.0, 5.6),
+    "sim": (0.6, 1.6, 4.0, 3.6),
     "data": (-4.0, 0.0, 4.0, 0.9),
 }
 LANE_START, LANE_STEP = 4.35, 0.3  # |x| of the innermost lane beside the boxes, and the spacing
@@ -189,9 +190,9 @@ def draw(modules: dict[str, list[str]], counts: Counter, allowed: set[tuple[str,
     missing = set(modules) - set(BOXES)
     if missing:
         raise SystemExit(f"rooms without a place in the figure: {sorted(missing)}; add them to BOXES")
-    fig, ax = plt.subplots(figsize=(8.6, 9.6), dpi=110)
+    fig, ax = plt.subplots(figsize=(8.6, 10.6), dpi=110)
     ax.set_xlim(-6.0, 6.0)
-    ax.set_ylim(-1.45, 11.2)
+    ax.set_ylim(-1.45, 12.4)
     ax.set_aspect("equal")
     ax.axis("off")
     _draw_boxes(ax, modules)
@@ -220,7 +221,8 @@ def main() -> None:
     for a, b in broken:
         print(f"warning: {a} imports {b} against the rules ({counts[(a, b)]} import statements)")
     OUT.parent.mkdir(parents=True, exist_ok=True)
-    print(write_figure(OUT, draw(modules, counts, allowed)))
+    # the rooms and their modules go into the PNG, so that tests/test_docs.py sees when they change
+    print(write_figure(OUT, draw(modules, counts, allowed), {"Description": json.dumps(modules)}))
 
 
 if __name__ == "__main__":

@@ -163,9 +163,10 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return _write(path, "w", lambda f: f.write(text))
 
 
-def write_figure(path: str | os.PathLike, fig) -> Path:
-    """Saves the matplotlib figure ``fig`` as a PNG at ``path`` atomically."""
-    return _write(path, "wb", lambda f: fig.savefig(f, format="png"))
+def write_figure(path: str | os.PathLike, fig, metadata: dict[str, str] | None = None) -> Path:
+    """Saves the matplotlib figure ``fig`` as a PNG at ``path`` atomically; ``metadata``: text chunks
+    of the PNG (``Description``: what the figure was drawn from, for a test to compare)."""
+    return _write(path, "wb", lambda f: fig.savefig(f, format="png", metadata=metadata))
 
 
 def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> Path:
