@@ -193,9 +193,9 @@ def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     ax.set_xlabel("static obstacles")
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 100)
-    ax.set_title(
-        f"{experiment.name}: {experiment.runs} policies x {experiment.tests} tests per point", fontsize=10
-    )
+    bands = " (bands: worst to best run)" if experiment.runs > 1 else ""
+    ax.set_title(f"{experiment.name}: {experiment.runs} policies x {experiment.tests} tests per point{bands}",
+                 fontsize=10)  # fmt: skip
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
