@@ -21,9 +21,11 @@ the robot's memory's escape waypoint while it is stuck; the expert drives the sa
 trains DAgger with it. BC learns from ``--demos`` and trained runs come as they were trained: give
 demonstrations and runs recorded with the same guide (not checked here).
 
-Writes DIR/families.json (every cell), families.csv, families.md and families.png (bars: the
-average over runs, whiskers from the worst to the best run). A cell is one (method, run) and
-computed once: rerunning with the same DIR resumes; nothing is overwritten.
+Writes DIR/families.json (every cell, and the methods in order), families.csv, families.md and
+families.png (bars: the average over runs, whiskers from the worst to the best run). A cell is one
+(method, run) and computed once: rerunning with the same DIR resumes; nothing is overwritten.
+
+    python docs/scripts/floor_plan_table.py --redraw DIR    # the tables and figure again, from DIR's cells
 """
 
 from __future__ import annotations
@@ -124,7 +126,12 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
     from nirl_mj.inspect.canvas import subplots
 
     fig, ax = subplots(figsize=(10, 4.2), dpi=110)
-    colours = matplotlib.colormaps["tab20"]
+    # tab20's dark shades first (ten hues), then its light ones: no two of the first ten share a hue
+    palette = matplotlib.colormaps["tab20"]
+
+    def colours(k: int):
+        return palette((2 * k) % 20 + (2 * k) // 20 % 2)
+
     width = 0.8 / len(methods)
     x = np.arange(len(FAMILIES))
     for k, m in enumerate(methods):
@@ -133,13 +140,14 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
         low = [mean[i] - (min(v) if v else 0.0) for i, v in enumerate(values)]
         high = [(max(v) if v else 0.0) - mean[i] for i, v in enumerate(values)]
         ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, label=m, yerr=[low, high],
-               color=colours(k % 20), error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
+               color=colours(k), error_kw={"elinewidth": 0.6, "capsize": 1.5})  # fmt: skip
     ax.set_xticks(x, FAMILIES)
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 105)
     runs = max(c["run"] for c in cells) + 1
     arenas = len(cells[0]["seeds"])
-    ax.set_title(f"success per floor-plan family: {runs} runs x {arenas} arenas per bar", fontsize=10)
+    ax.set_title(f"success per floor-plan family: {runs} runs x {arenas} arenas per bar (whiskers: worst to "
+                 "best run)", fontsize=10)  # fmt: skip
     ax.legend(fontsize=7, ncol=len(methods), loc="upper center", bbox_to_anchor=(0.5, -0.08))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
@@ -148,8 +156,10 @@ def tables(cells: list[dict], methods: list[str], out: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--demos", required=True, help="the experiment's demos.npz")
-    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--demos", help="the experiment's demos.npz")
+    parser.add_argument("--out", type=Path)
+    parser.add_argument("--redraw", type=Path, metavar="DIR",
+                        help="compute nothing: DIR's tables and figure from its families.json")  # fmt: skip
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--tests", type=int, default=10, help="arenas per family and run")
     parser.add_argument("--workers", type=int, default=2)
@@ -158,6 +168,11 @@ def main() -> None:
     parser.add_argument("--methods", default=",".join(BUILT_HERE), help="of: " + ",".join(BUILT_HERE))
     parser.add_argument("trained", nargs="*", help="NAME=RUNS_DIR")
     args = parser.parse_args()
+    if args.redraw:
+        redraw(args.redraw, parser)
+        return
+    if not (args.demos and args.out):
+        parser.error("--demos and --out are required (or --redraw DIR)")
     sources: dict[str, str | None] = {}
     for item in args.trained:
         name, _, directory = item.partition("=")
@@ -174,6 +189,21 @@ def main() -> None:
             compute(args, sources, parser)
     except LockedError as exc:
         parser.exit(2, f"floor_plan_table: {exc}\n")
+
+
+def redraw(folder: Path, parser: argparse.ArgumentParser) -> None:
+    """The tables and figure of ``folder`` from its stored cells, the methods in their stored order
+    (files written before it was stored: the order of families.md's rows)."""
+    store = folder / "families.json"
+    if not store.is_file():
+        parser.error(f"{store}: not found")
+    done = json.loads(store.read_text())
+    methods = done.get("methods")
+    if methods is None:  # "| NAME | ..." after the header and its rule (a name may hold commas)
+        rows = (folder / "families.md").read_text().splitlines()[2:]
+        methods = [row.split("|")[1].strip() for row in rows if row.startswith("|")]
+    with DirectoryLock(folder, "floor_plan_table"):
+        tables(done["cells"], methods, folder)
 
 
 def compute(
@@ -197,7 +227,9 @@ def compute(
             write_text(store, json.dumps(done, indent=1))  # after every cell: interruptible
             rates = " ".join(f"{f[:4]} {100 * result[f]['success_rate']:.0f}" for f in FAMILIES)
             print(f"[{k}/{len(work)}] {result['method']} run {result['run']}: {rates}", flush=True)
-    tables(done["cells"], list(sources), args.out)
+    done["methods"] = list(sources)  # the figure's order, for --redraw
+    write_text(store, json.dumps(done, indent=1))
+    tables(done["cells"], done["methods"], args.out)
     print(f"wrote {args.out}/families.md, .csv, .png, .json")
 
 
