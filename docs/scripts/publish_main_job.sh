@@ -2,7 +2,8 @@
 # Keeps a finished main job's results in docs/results/main_job/: results.json, report.md and its
 # figures, experiment.json, the test episodes (tests/METHOD.npz, the dataset format) that the
 # report's path and SCT columns are computed from, and NIRL's run record, metrics and reward
-# (nirl/: what the training figures are drawn from; published since 2026-11-30). Then the docs' tables: python docs/scripts/render_docs.py.
+# (nirl/: what the training figures are drawn from; published since 2026-11-30).
+# Then the docs' tables: python docs/scripts/render_docs.py.
 # Usage: bash docs/scripts/publish_main_job.sh [RUN]   (default runs/main, what `nirl-mj run` writes)
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -34,10 +34,11 @@ def charts() -> list[tuple[Path, Path]]:
     return [(p.parent / "results.json", p) for p in sorted(figures) if (p.parent / "results.json").is_file()]
 
 
-def draw(results: Path, out: Path, figure: str) -> None:
-    """``out`` drawn from ``results``: a compare ``results.json`` (``table.png``) or a sweep's."""
+def draw(results: Path, out: Path) -> None:
+    """``out`` drawn from ``results``: a compare ``results.json`` (``table.png``) or a sweep's
+    (``sweep.png``), as its name says."""
     summary = json.loads(results.read_text())
-    if figure == "sweep.png":
+    if out.name == "sweep.png":
         line_plot(out, summary, load_experiment(summary["experiment"], kind="sweep"))
     else:
         bar_chart(
@@ -53,11 +54,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for results, png in charts():
             fresh = Path(tmp) / png.name
-            draw(results, fresh, png.name)
+            draw(results, fresh)
             if fresh.read_bytes() != png.read_bytes():
                 differ.append(png)
                 if not args.check:
-                    draw(results, png, png.name)  # written atomically (nirl_mj.data.atomic.write_figure)
+                    draw(results, png)  # written atomically (nirl_mj.data.atomic.write_figure)
     for png in differ:
         print(f"{'differs' if args.check else 'redrew'}: {png.relative_to(ROOT)}")
     print(f"{len(charts())} charts, {len(differ)} {'differ' if args.check else 'redrawn'}")
