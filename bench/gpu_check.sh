@@ -9,6 +9,10 @@
 # nvidia-smi (the machine's description comes first). GPU_CHECK_DEVICE=cpu GPU_CHECK_ARGS='--worlds 4
 # --quick --json' runs the benchmark on Warp's CPU device instead, on a machine with nvidia-smi and a
 # pack that keeps that device (gpu_pack.py --python 3.11 --cpu-device).
+# With a dataset at .gpu/demos/demos.npz (carry .gpu/demos with the last call), NIRL's default
+# training runs too (bench/bench_warp_training.py): on the CPU backend on one core while the
+# benchmark runs (a same-machine reference), then on Warp's GPU worlds for at most
+# GPU_CHECK_TRAIN_S seconds (default 230); their logs come back as train_cpu.log and train_warp.log.
 set -euo pipefail
 verb=${1:?stash or run}
 mkdir -p .gpu-stash
@@ -37,12 +41,22 @@ mkdir -p "$out"
 # entry is only never used.
 cache=$HOME/.cache/warp
 if [ -f .gpu/cache/warp-cache.tgz ]; then mkdir -p "$cache" && tar xzf .gpu/cache/warp-cache.tgz -C "$cache"; fi
+demos=.gpu/demos/demos.npz
+if [ -f "$demos" ]; then
+  OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 timeout 500 python3 bench/bench_warp_training.py --demos "$demos" \
+    --out /tmp/train-cpu --backend cpu > "$out/train_cpu.log" 2>&1 &
+fi
 # Stopped before the call's limit so that what it wrote (the section is written once the agreement
 # is in, before the launch-by-launch timings) still comes back.
 timeout "${GPU_CHECK_LIMIT_S:-520}" python3 bench/bench_backend.py --device "${GPU_CHECK_DEVICE:-cuda}" \
   ${GPU_CHECK_ARGS:---json} 2>&1 | tee "$out/bench_backend.log" || echo "bench_backend.py stopped: rc $?" >&2
 tail -n 1 "$out/bench_backend.log" > "$out/bench_backend.json"
 cp docs/PERFORMANCE.md "$out/PERFORMANCE.md"
+if [ -f "$demos" ]; then
+  timeout "${GPU_CHECK_TRAIN_S:-230}" python3 bench/bench_warp_training.py --demos "$demos" --out /tmp/train-warp \
+    --backend warp --device cuda --worlds 10 2>&1 | grep -v '^Module ' | tee "$out/train_warp.log" || true
+  wait  # the CPU training (it ends well before: about 3 minutes on one core)
+fi
 # The kernel cache back, where it fits in what a call returns (16 MiB a file).
 tar czf /tmp/warp-cache.tgz -C "$cache" . 2>/dev/null || true
 if [ -f /tmp/warp-cache.tgz ] && [ "$(stat -c %s /tmp/warp-cache.tgz)" -le 16000000 ]; then
