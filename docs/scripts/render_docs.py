@@ -21,10 +21,12 @@ Renderers (``RENDERERS``):
   output), in a code block with ``code``;
 - ``main-job FOLDER``: the main job's table as its report gives it, from a folder that
   ``publish_main_job.sh`` filled;
+- ``experts FOLDER``: docs/EXPERTS.md's table of the demonstrators, from the rows that
+  ``expert_table.py`` stored;
 - those of ``algorithm_tables.py``, docs/ALGORITHM.md's own.
 
-``tests/test_docs.py`` runs ``--check`` and also fails when a results table in README.md,
-docs/RESULTS.md or docs/ALGORITHM.md lies outside a generated block.
+``tests/test_docs.py`` runs ``--check`` and also fails when a results table in one of the
+``CHECKED`` pages lies outside a generated block.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ sys.path.insert(0, str(HERE))
 
 import algorithm_tables  # noqa: E402
 import experiment_index  # noqa: E402
+import expert_table  # noqa: E402
 import suite_reading  # noqa: E402
 import summary_table  # noqa: E402
 
@@ -49,15 +52,18 @@ from nirl_mj.data.atomic import write_text  # noqa: E402
 from nirl_mj.experiments import compare, main_job  # noqa: E402
 
 BLOCK = re.compile(r"(<!-- generated: (?P<command>[^>]*?) -->\n)(?P<body>.*?)(<!-- end generated -->)", re.S)
-PAGES = ("README.md", "docs/*.md")
-CHECKED = ("README.md", "docs/RESULTS.md", "docs/ALGORITHM.md")
+PAGES = ("README.md", "docs/*.md", "docs/notebook/*.md")
+CHECKED = ("README.md", "docs/RESULTS.md", "docs/ALGORITHM.md", "docs/EXPERTS.md", "docs/INSPECT.md")
 """The pages whose every results table must be generated (issue 35)."""
 
 
 def _results(path: str) -> dict:
     summary = json.loads((ROOT / path).read_text(encoding="utf-8"))
     for s in summary["methods"].values():  # JSON turned the run indices into strings
-        s["by_run"] = {int(r): v for r, v in s.get("by_run", {}).items()}
+        if "by_run" in s:
+            s["by_run"] = {int(r): v for r, v in s["by_run"].items()}
+        else:  # a summary from before by_run: per_run holds runs 0..n-1 (their cells' names say so)
+            s["by_run"] = dict(enumerate(s.get("per_run", [])))
     return summary
 
 
@@ -109,6 +115,7 @@ RENDERERS: dict[str, Callable[..., str]] = {
     "experiment-index": render_experiment_index,
     "include": render_include,
     "main-job": render_main_job,
+    "experts": expert_table.render,
     **algorithm_tables.RENDERERS,
 }
 
