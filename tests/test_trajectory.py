@@ -319,6 +319,7 @@ CORRUPTIONS = {
         r"tasks\[0\] is not valid JSON",
     ),
     "times backwards": (_set_index("times", 2, -1.0), r"'times' decrease"),
+    "times not from 0": (_set_index("times", 0, 0.5), r"'times' of trajectory 0 start at 0\.5 s"),
     "speed 0": (_set_index("speed", 0, 0.0), r"speed out of range"),
     "empty": (_empty, r"empty dataset"),
     "no format": (_drop("format"), r"not an nirl-mj dataset: no 'format'"),

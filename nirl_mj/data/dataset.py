@@ -506,9 +506,16 @@ def _check_tasks(a: Mapping[str, np.ndarray]) -> None:
 
 
 def _check_times(a: Mapping[str, np.ndarray]) -> None:
-    """Times must not run backwards within a trajectory (they restart at each one)."""
+    """Times start at 0 s in every trajectory (seconds since its start) and never run backwards
+    within one."""
     lengths = a["lengths"]
-    starts = np.concatenate([[0], np.cumsum(lengths + 1)[:-1]])
+    starts = np.concatenate([[0], np.cumsum(lengths + 1)[:-1]]).astype(np.int64)
+    late = np.flatnonzero(a["times"][starts] != 0)
+    if late.size:
+        i = int(late[0])
+        first = float(a["times"][starts[i]])
+        raise _Invalid(f"'times' of trajectory {i} start at {first} s; each trajectory's times are seconds "
+                       "since its start, so its first is 0")  # fmt: skip
     dt = np.diff(a["times"])
     dt[starts[1:] - 1] = 0.0  # across trajectory boundaries
     if np.any(dt < 0):
