@@ -1015,3 +1015,25 @@ def test_a_stored_cell_of_another_id_method_or_run_is_not_taken_for_a_finished_o
     for ident in ("demos-10.rule-run000", "rule-run000-n020-v2"):
         store.save(ident, {**metrics, "method": "rule", "run": 0}, 1.0, 1)
         assert store.load(ident) is not None
+
+
+def test_sweep_plot_draws_speeds_with_the_same_curve_once(tmp_path, monkeypatch):
+    """Fig. 6: forward's success does not depend on the speed; its three curves would hide each other."""
+    from types import SimpleNamespace
+
+    from nirl_mj.experiments import sweep
+
+    drawn = {}
+    monkeypatch.setattr(sweep, "write_figure", lambda path, fig: drawn.setdefault("fig", fig))
+    methods = [SimpleNamespace(name="NIRL"), SimpleNamespace(name="forward")]
+    experiment = SimpleNamespace(name="s", runs=2, tests=10, speeds=(1.0, 2.0, 3.0), methods=methods)
+
+    def cell(method, speed, obstacles, avg):
+        return {"method": method, "speed": speed, "obstacles": obstacles, "runs": 2, "avg": avg,
+                "worst": avg - 0.1, "best": avg}  # fmt: skip
+
+    cells = [cell("NIRL", v, n, 0.9 - 0.1 * v - 0.01 * n) for v in (1.0, 2.0, 3.0) for n in (5, 10)]
+    cells += [cell("forward", v, n, 0.6 - 0.01 * n) for v in (1.0, 2.0, 3.0) for n in (5, 10)]
+    sweep.line_plot(tmp_path / "p.png", {"cells": cells}, experiment)
+    labels = [line.get_label() for line in drawn["fig"].axes[0].get_lines()]
+    assert labels == ["NIRL, 1 m/s", "NIRL, 2 m/s", "NIRL, 3 m/s", "forward, 1, 2 and 3 m/s (the same)"]

@@ -177,19 +177,27 @@ def line_plot(path: Path, summary: dict, experiment: Experiment) -> Path:
     colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     styles = ["-", "--", ":", "-."]
     for k, method in enumerate(experiment.methods):
+        series: dict[tuple, list[int]] = {}  # a curve and the speeds (indices) that drew it
         for j, v in enumerate(experiment.speeds):
             rows = [
                 r for r in summary["cells"] if r["method"] == method.name and r["speed"] == v and r["runs"]
             ]
-            if not rows:
-                continue
-            x = [r["obstacles"] for r in rows]
-            colour = colours[j % len(colours)]
-            ax.plot(x, [100 * r["avg"] for r in rows], styles[k % len(styles)], color=colour, marker="o",
-                    ms=4, label=f"{method.name}, {v:g} m/s")  # fmt: skip
+            if rows:
+                curve = tuple((r["obstacles"], r["avg"], r["worst"], r["best"]) for r in rows)
+                series.setdefault(curve, []).append(j)
+        for curve, speeds in series.items():
+            # speeds with the same curve (a policy that ignores the speed, e.g. forward) share one line,
+            # grey, instead of lines drawn over each other
+            x, avg, worst, best = (list(column) for column in zip(*curve, strict=True))
+            colour = colours[speeds[0] % len(colours)] if len(speeds) == 1 else "0.4"
+            names = [f"{experiment.speeds[j]:g}" for j in speeds]
+            label = f"{method.name}, {names[0]} m/s" if len(names) == 1 else (
+                f"{method.name}, {', '.join(names[:-1])} and {names[-1]} m/s (the same)")  # fmt: skip
+            ax.plot(x, [100 * a for a in avg], styles[k % len(styles)], color=colour, marker="o", ms=4,
+                    label=label)  # fmt: skip
             if experiment.runs > 1:
-                ax.fill_between(x, [100 * r["worst"] for r in rows], [100 * r["best"] for r in rows],
-                                color=colour, alpha=0.12)  # fmt: skip
+                ax.fill_between(x, [100 * w for w in worst], [100 * b for b in best], color=colour,
+                                alpha=0.12)  # fmt: skip
     ax.set_xlabel("static obstacles")
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 100)
