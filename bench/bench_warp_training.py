@@ -6,8 +6,10 @@ one (``--worlds`` worlds on ``--device``); its selected policy is then tested on
 held-out arenas of the CPU task (the reference), so the two backends' policies are compared on
 the same arenas. A line per iteration gives the wall time since the start (the first includes
 Warp's kernel compilation), so a run stopped early still says how fast it went; one JSON line
-comes last. It imports the library, not the ``nirl-mj`` command (the GPU machine has no
-rerun-sdk), and it is what ``bench/gpu_check.sh`` runs after ``bench_backend.py``.
+comes last (after a ``--resume``, its timings are this process's: ``resumed_at`` iterations were
+done before). It imports the library, not the ``nirl-mj`` command (the GPU machine has no
+rerun-sdk); ``bench/gpu_check.sh`` runs it on the CPU backend beside ``bench_backend.py`` and on
+the GPU after it.
 
     python bench/bench_warp_training.py --demos D.npz --out RUN --backend warp --device cuda --worlds 10
     python bench/bench_warp_training.py --demos D.npz --out RUN --backend cpu
@@ -21,6 +23,8 @@ import time
 
 import numpy as np
 
+from nirl_mj.data.dataset import DatasetError
+from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.subjects import run_subject
 from nirl_mj.experiments.training import train
@@ -46,7 +50,10 @@ def main() -> None:
     parser.add_argument("--resume", action="store_true")
     args = parser.parse_args()
     backend = Backend(args.backend, args.worlds, args.device)
+    if args.episodes is not None and args.episodes < 1:
+        parser.error(f"--episodes must be at least 1, got {args.episodes}")
     config = LearnerConfig.preset("default", **({"episodes": args.episodes} if args.episodes else {}))
+    before = RunDir(args.out).iterations_done() if args.resume and RunDir(args.out).is_run else 0
     start, stamps = time.perf_counter(), []
 
     def progress(m) -> None:
@@ -55,11 +62,15 @@ def main() -> None:
               f"{m.success_rate:.1f}", flush=True)  # fmt: skip
 
     task = load_task("navigate")
-    record = train(args.out, task, args.demos, config, args.seed, args.resume, progress, backend)
+    try:
+        record = train(args.out, task, args.demos, config, args.seed, args.resume, progress, backend)
+    except (RunError, DatasetError, FileNotFoundError) as error:
+        raise SystemExit(f"error: {error}") from None
     wall = time.perf_counter() - start
     steps = np.diff(stamps) if len(stamps) > 1 else np.array([])
     result = {
         "backend": backend.to_dict() if backend.name != "cpu" else {"name": "cpu"},
+        "resumed_at": before,
         "iterations": len(stamps),
         "train_wall_s": round(wall, 1),
         "first_iteration_s": round(stamps[0], 1) if stamps else None,
@@ -69,7 +80,7 @@ def main() -> None:
     if args.tests:
         subject = run_subject(args.out)
         t0 = time.perf_counter()
-        seeds = subject.test_seeds(0, args.tests)
+        seeds = subject.test_seeds(args.seed, args.tests)
         metrics, _ = evaluate(make_env(subject.task), subject.policy, seeds, "nirl")
         result |= {"tests": args.tests, "test_success": metrics["success_rate"],
                    "test_s": round(time.perf_counter() - t0, 1)}  # fmt: skip

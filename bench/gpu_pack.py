@@ -16,8 +16,8 @@ right after the other.
 
     python bench/gpu_pack.py       # 232 MiB of wheels -> 93 MiB in 3 parts; ~3 min (xz on one core)
 
-These parts and ``bench/gpu_check.sh`` ran on an H100 at commits 2b1cbc8, d1a32e9 and 7115e0b
-(docs/results/gpu_backend).
+These parts and ``bench/gpu_check.sh`` ran on an H100 at commits 2b1cbc8, d1a32e9 and 7115e0b, and
+on an H200 at 4144f67 (docs/results/gpu_backend).
 """
 
 from __future__ import annotations
@@ -44,6 +44,9 @@ PRUNED = ("dm_control/suite/", "dm_control/locomotion/", "mujoco/experimental/",
 CPU_DEVICE = ("warp/bin/warp-clang.so",)
 """Warp's compiler for its CPU device (69 MB): Warp loads it only if present, and the GPU check
 runs kernels on CUDA alone (its CPU reference is the dm_control task). Kept with ``--cpu-device``."""
+KEPT = ("cache", "demos")
+"""Folders of ``.gpu/`` the last call carries beside its part, kept when the parts are made again:
+Warp's kernel cache from an earlier check and a dataset for the NIRL training (gpu_check.sh)."""
 PLATFORMS = ("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64",
              "manylinux_2_17_x86_64", "manylinux2014_x86_64")  # fmt: skip
 
@@ -80,16 +83,18 @@ def main() -> None:
         "--part-mib",
         type=float,
         default=45.0,
-        help="a part's size (the tracked tree, 12 MB, travels with it: 64 MiB a call)",
+        help="a part's size (the tracked tree, about 10 MB, travels with it: 64 MiB a call)",
     )
     parser.add_argument("--python", default="3.12", help="the device's Python (KINDS.md: 3.12.3)")
     parser.add_argument("--cpu-device", action="store_true", help="keep Warp's CPU device (a local try)")
     args = parser.parse_args()
     if args.out.exists():
-        if any(not (p.is_dir() and p.name[:1] == "p" and p.name[1:].isdigit()) for p in args.out.iterdir()):
-            raise SystemExit(f"error: {args.out} holds more than this script's parts (p1/, p2/, ...); "
-                             "choose another --out")  # fmt: skip
-        shutil.rmtree(args.out)  # this script's own earlier parts
+        parts = [p for p in args.out.iterdir() if p.is_dir() and p.name[:1] == "p" and p.name[1:].isdigit()]
+        if any(p not in parts and p.name not in KEPT for p in args.out.iterdir()):
+            raise SystemExit(f"error: {args.out} holds more than this script's parts (p1/, p2/, ...), "
+                             f"{' and '.join(f'{k}/' for k in KEPT)}; choose another --out")  # fmt: skip
+        for folder in parts:  # this script's own earlier parts
+            shutil.rmtree(folder)
     with tempfile.TemporaryDirectory() as tmp:
         wheels = download(Path(tmp), args.python)
         print(f"{len(wheels)} wheels, {sum(w.stat().st_size for w in wheels) / 2**20:.0f} MiB", flush=True)
@@ -105,9 +110,12 @@ def main() -> None:
     print(f"{mib:.0f} MiB compressed, {len(parts)} parts under {args.out}; the calls, one after the other:")
     for i in range(1, len(parts) + 1):
         verb = "run" if i == len(parts) else "stash"
-        carry = f'".gpu/p{i}", ".gpu/cache"' if verb == "run" else f'".gpu/p{i}"'
+        carry = ", ".join(f'".gpu/{name}"' for name in (f"p{i}", *(KEPT if verb == "run" else ())))
         print(f'  run(command="bash bench/gpu_check.sh {verb}", carry=[{carry}], timeout_s=600)')
-    print("The last call returns warp-cache.tgz (Warp's kernels) where it fits: put it in .gpu/cache/")
+    print(
+        "The last call returns warp-cache.tgz (Warp's kernels) where it fits: put it in .gpu/cache/; "
+        "a dataset in .gpu/demos/demos.npz adds the NIRL trainings (nirl-mj demos --episodes 30 --out ...)"
+    )
 
 
 if __name__ == "__main__":

@@ -3,10 +3,11 @@
 Each row is one ``nirl-mj demos`` command (seed 0, ``tasks/navigate.toml`` unless its settings
 say otherwise); the three 30-demonstration rows are also read by ``nirl-mj inspect`` (MAP
 pretreatment's relabelled pairs, eq. 10). Every command's JSON line is kept in
-``DIR/ROW.json``; a row already there is not run again (rerun to resume), and ``--render`` prints
-the table from the stored files alone (``render_docs.py``'s ``experts`` block calls :func:`render`).
+``DIR/ROW.json`` with the date and commit it ran at; a row already there is not run again (rerun
+to resume), and ``--render`` prints the table, then the relabelled pairs, from the stored files
+alone (``render_docs.py``'s ``experts`` block calls :func:`render`).
 
-    python docs/scripts/expert_table.py --out docs/results/experts      # ~10 min on 2 cores
+    python docs/scripts/expert_table.py --out docs/results/experts      # ~3 min on 2 cores
     python docs/scripts/expert_table.py --render docs/results/experts
 """
 
@@ -17,6 +18,7 @@ import json
 import subprocess
 import sys
 import tempfile
+from datetime import UTC, datetime
 from pathlib import Path
 
 from nirl_mj.data.atomic import write_text
@@ -49,7 +51,18 @@ def _json_line(command: list[str]) -> dict:
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
     if done.returncode != 0:
         raise SystemExit(f"error: {' '.join(command)} failed:\n{done.stderr.strip()}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    try:
+        return json.loads((done.stdout.strip().splitlines() or [""])[-1])
+    except json.JSONDecodeError:
+        raise SystemExit(f"error: {' '.join(command)} printed no JSON line last") from None
+
+
+def _commit() -> str:
+    """The checkout's commit, ``+uncommitted`` when its tracked files differ from it."""
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                           capture_output=True, text=True).stdout.strip()  # fmt: skip
+    return head.stdout.strip() + ("+uncommitted" if dirty else "") if head.returncode == 0 else "unknown"
 
 
 def measure(folder: Path) -> None:
@@ -63,8 +76,10 @@ def measure(folder: Path) -> None:
             dataset = str(Path(tmp) / "demos.npz")
             command = ["demos", "--episodes", str(episodes), "--seed", "0", *extra]
             command += ["--out", dataset, "--json"]
-            row = {"command": "nirl-mj " + " ".join(command[:-2] + ["X.npz", "--json"]),
-                   "demos": _json_line([*NIRL_MJ, *command, "--quiet"])}  # fmt: skip
+            demos = _json_line([*NIRL_MJ, *command, "--quiet"])
+            demos.pop("out", None)  # the temporary dataset's path
+            row = {"command": "nirl-mj " + " ".join(command[:-2] + ["X.npz", "--json"]), "demos": demos,
+                   "date": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC", "commit": _commit()}  # fmt: skip
             if name in INSPECTED:
                 row["inspect"] = _json_line([*NIRL_MJ, "inspect", dataset, "--json"])
         write_text(path, json.dumps(row, indent=1) + "\n")
@@ -120,7 +135,8 @@ def main() -> None:
         measure(args.out)
     if args.render:
         print(render(args.render))
-        print(map_relabelled(args.render))
+        for name, (changed, pairs) in map_relabelled(args.render).items():
+            print(f"{name}: MAP pretreatment relabels {changed} of {pairs} pairs")
 
 
 if __name__ == "__main__":

@@ -17,8 +17,8 @@ Renderers (``RENDERERS``):
   method stays the paired reference);
 - ``suite-reading [DIR]``: the suites' reading (``suite_reading.py``, default docs/results/suites);
 - ``experiment-index``: the claim/experiment/results index (``experiment_index.py``);
-- ``include PATH [code]``: a stored output file verbatim (a suite's ``suite.md``, a script's
-  output), in a code block with ``code``;
+- ``include PATH [code|table]``: a stored output file verbatim (a suite's ``suite.md``, a script's
+  output), in a code block with ``code``, or its Markdown table lines alone with ``table``;
 - ``main-job FOLDER``: the main job's table as its report gives it, from a folder that
   ``publish_main_job.sh`` filled;
 - ``experts FOLDER``: docs/EXPERTS.md's table of the demonstrators, from the rows that
@@ -99,8 +99,10 @@ def render_experiment_index() -> str:
 
 def render_include(path: str, form: str = "text") -> str:
     text = (ROOT / path).read_text(encoding="utf-8").strip()
-    if form not in ("text", "code"):
-        raise ValueError(f"include {path} {form}: the form is text or code")
+    if form not in ("text", "code", "table"):
+        raise ValueError(f"include {path} {form}: the form is text, code or table")
+    if form == "table":  # the file's Markdown table alone (a page elsewhere: its heading and links left out)
+        return "\n".join(line for line in text.splitlines() if line.startswith("|"))
     return f"```\n{text}\n```" if form == "code" else text
 
 
@@ -115,7 +117,7 @@ RENDERERS: dict[str, Callable[..., str]] = {
     "experiment-index": render_experiment_index,
     "include": render_include,
     "main-job": render_main_job,
-    "experts": expert_table.render,
+    "experts": lambda folder: expert_table.render(ROOT / folder),
     **algorithm_tables.RENDERERS,
 }
 
