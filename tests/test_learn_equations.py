@@ -397,7 +397,13 @@ def test_policy_objective_layout_is_bit_for_bit():
     values = _action_values(theta, blocks, loss)
     scores = np.einsum("jna,na->jn", policies, values)
     reference = _blocks_objective(
-        theta, blocks, offset, values, policies[np.argmax(scores, axis=0), np.arange(200)], 0.01
+        theta,
+        blocks,
+        offset,
+        offset.mean(axis=0),
+        values,
+        policies[np.argmax(scores, axis=0), np.arange(200)],
+        0.01,
     )
     value, grad = mmp_objective_policies(theta, blocks, offset, loss, policies, 0.01)
     assert value == reference[0]

@@ -131,10 +131,23 @@ def mmp_objective_blocks(
     Equal to ``mmp_objective(theta, expert, learner, loss, lam)`` with
     ``learner[n, a] = f(s_n, a) + gamma mu(next_n)`` (a test checks it).
     """
+    return _greedy_blocks_objective(theta, blocks, offset, offset.mean(axis=0), loss, lam)
+
+
+def _greedy_blocks_objective(
+    theta: np.ndarray,
+    blocks: np.ndarray,
+    offset: np.ndarray,
+    offset_mean: np.ndarray,
+    loss: np.ndarray,
+    lam: float,
+) -> tuple[float, np.ndarray]:
+    """:func:`mmp_objective_blocks` with the offset's mean over the pairs given (it does not change
+    while theta does)."""  # fmt: skip
     values = _action_values(theta, blocks, loss)
     chosen = np.zeros_like(values)
     chosen[np.arange(len(values)), np.argmax(values, axis=1)] = 1.0  # lowest index on ties
-    return _blocks_objective(theta, blocks, offset, values, chosen, lam)
+    return _blocks_objective(theta, blocks, offset, offset_mean, values, chosen, lam)
 
 
 def mmp_objective_policies(
@@ -156,7 +169,9 @@ def mmp_objective_policies(
     their action probabilities in the expert's states, not by their rollouts: what follows each
     alternative is in ``offset`` (the expert's continuation by default, which cancels).
     """
-    return _per_state_policies_objective(theta, blocks, offset, loss, _per_state(policies), lam)
+    return _per_state_policies_objective(
+        theta, blocks, offset, offset.mean(axis=0), loss, _per_state(policies), lam
+    )
 
 
 def _per_state(policies: np.ndarray) -> np.ndarray:
@@ -168,11 +183,13 @@ def _per_state_policies_objective(
     theta: np.ndarray,
     blocks: np.ndarray,
     offset: np.ndarray,
+    offset_mean: np.ndarray,
     loss: np.ndarray,
     per_state: np.ndarray,
     lam: float,
 ) -> tuple[float, np.ndarray]:
-    """:func:`mmp_objective_policies` on policies laid out (N, J, A) (:func:`_per_state`).
+    """:func:`mmp_objective_policies` on policies laid out (N, J, A) (:func:`_per_state`), with the
+    offset's mean over the pairs given.
 
     The same sums over a as in the (J, N, A) layout, bit for bit (a test checks it); the max
     over j then runs along memory, which takes about 40 % off an update.
@@ -181,7 +198,7 @@ def _per_state_policies_objective(
     scores = np.einsum("nja,na->nj", per_state, values)
     rows = np.arange(len(values))
     chosen = per_state[rows, np.argmax(scores, axis=1)]  # (N, A), lowest j on ties
-    return _blocks_objective(theta, blocks, offset, values, chosen, lam)
+    return _blocks_objective(theta, blocks, offset, offset_mean, values, chosen, lam)
 
 
 def _action_values(theta: np.ndarray, blocks: np.ndarray, loss: np.ndarray) -> np.ndarray:
@@ -194,16 +211,18 @@ def _blocks_objective(
     theta: np.ndarray,
     blocks: np.ndarray,
     offset: np.ndarray,
+    offset_mean: np.ndarray,
     values: np.ndarray,
     chosen: np.ndarray,
     lam: float,
 ) -> tuple[float, np.ndarray]:
-    """J and its subgradient when state n's alternative weighs its actions by chosen[n] (N, A)."""
+    """J and its subgradient when state n's alternative weighs its actions by chosen[n] (N, A);
+    ``offset_mean`` is ``offset.mean(axis=0)``, computed once per minimisation by its callers."""
     theta = np.asarray(theta, dtype=np.float64)
     n = len(values)
     value = float(np.mean((chosen * values).sum(axis=1) + offset @ theta) + 0.5 * lam * (theta @ theta))
     # subgradient: (1/N) sum_n sum_a chosen[n, a] f(s_n, a) + mean(offset) + lambda_1 theta
-    grad = (chosen.T @ blocks).reshape(-1) / n + offset.mean(axis=0) + lam * theta
+    grad = (chosen.T @ blocks).reshape(-1) / n + offset_mean + lam * theta
     return value, grad
 
 
@@ -274,11 +293,14 @@ def minimise_mmp_blocks(
 ) -> tuple[np.ndarray, float]:
     """:func:`minimise_mmp` with the objective of :func:`mmp_objective_blocks` (same iterates), or of
     :func:`mmp_objective_policies` when ``policies`` (J, N, A) is given."""
-    if policies is None:
-        objective = lambda theta: mmp_objective_blocks(theta, blocks, offset, loss, lam)  # noqa: E731
-    else:
-        per_state = _per_state(policies)
-        objective = lambda theta: _per_state_policies_objective(theta, blocks, offset, loss, per_state, lam)  # noqa: E731
+    mean = offset.mean(axis=0)  # the same at every step: computed once
+    per_state = None if policies is None else _per_state(policies)
+
+    def objective(theta: np.ndarray) -> tuple[float, np.ndarray]:
+        if per_state is None:
+            return _greedy_blocks_objective(theta, blocks, offset, mean, loss, lam)
+        return _per_state_policies_objective(theta, blocks, offset, mean, loss, per_state, lam)
+
     return projected_subgradient(objective, theta0, steps, step_size, decay)
 
 
