@@ -138,3 +138,29 @@ def test_a_turn_from_rest_or_after_backward_falls_short() -> None:
             share = drive.body_twist(ctl.plan(action, 2.0))[:, 2].sum() * 0.01 / turn
             later = drive.body_twist(ctl.plan(0, 2.0))[:, 2].sum() * 0.01 / turn
             assert low < share < high and later_low < later < later_high, (before, action, share, later)
+
+
+def test_batch_controller_gives_each_world_its_own_controllers_commands():
+    """BatchDriveController (the Warp worlds' discrete drive) against one DriveController per world,
+    bit for bit, over random actions with resets between them, raw and through body_twist."""
+    from nirl_mj.sim.drive import BatchDriveController, DriveController, body_twist
+
+    rng = np.random.default_rng(3)
+    n, args = 7, (2.0, 0.5, 0.01, 4.0)
+    for convert in (None, body_twist):
+        batch = BatchDriveController(n, *args, convert=convert)
+        single = [DriveController() for _ in range(n)]
+        for decision in range(40):
+            worlds = np.flatnonzero(rng.random(n) < 0.7)  # some worlds sit a decision out
+            actions = rng.integers(0, 6, size=worlds.size)
+            out = np.full((50, n, 3), np.nan)
+            batch.plan(worlds, actions, out)
+            for w, a in zip(worlds.tolist(), actions.tolist(), strict=True):
+                plan = single[w].plan(a, *args)
+                np.testing.assert_array_equal(out[:, w], convert(plan) if convert else plan)
+            assert np.isnan(np.delete(out, worlds, axis=1)).all()  # the others untouched
+            if decision % 9 == 8:
+                ended = rng.choice(n, size=2, replace=False)
+                batch.reset(ended)
+                for w in ended.tolist():
+                    single[w].reset()

@@ -17,6 +17,7 @@ Conventions (match ``models/robotino/robotino.xml``):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ __all__ = [
     "WHEEL_RADIUS",
     "Action",
     "BODY_RADIUS",
+    "BatchDriveController",
     "DriveController",
     "action_profile",
     "action_share",
@@ -340,3 +342,61 @@ class DriveController:
         commands = rate_limit(self._last, targets, max_accel / WHEEL_RADIUS, cmd_dt)
         self._last = commands[-1].copy()
         return commands
+
+
+class BatchDriveController:
+    """:class:`DriveController` for N worlds at once, discrete actions only: a decision costs a few
+    numpy operations per distinct (last command, action) pair among the worlds instead of Python
+    per world (many worlds of one task share a handful of them: cruising, turning from cruise).
+
+    Each world's last command is an index into the distinct last commands seen; a pair's plan is
+    :meth:`DriveController.plan`'s, computed once (bit for bit the same), then passed through
+    ``convert`` (e.g. :func:`body_twist` for the planar drive) and kept. The arguments after ``n``
+    are :meth:`DriveController.plan`'s (speed m/s, period and cmd_dt s, max_accel m/s^2).
+    """
+
+    _CACHE_SIZE = 4096
+
+    def __init__(
+        self,
+        n: int,
+        speed: float,
+        period: float,
+        cmd_dt: float,
+        max_accel: float,
+        convert: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        self._args = (speed, period, cmd_dt, max_accel)
+        self._convert = convert
+        self._controller = DriveController(cache={})
+        self._lasts: list[np.ndarray] = [np.zeros(3)]
+        self._ids: dict[bytes, int] = {self._lasts[0].tobytes(): 0}
+        self._plans: dict[int, tuple[np.ndarray, int]] = {}  # last id * actions + action -> (plan, next id)
+        self._state = np.zeros(int(n), dtype=np.int64)  # each world's last command, by id
+
+    def reset(self, worlds: np.ndarray | Sequence[int]) -> None:
+        """The worlds' last commands back to zero (an episode's start)."""
+        self._state[np.asarray(worlds, dtype=np.int64)] = 0
+
+    def plan(self, worlds: np.ndarray, actions: np.ndarray, out: np.ndarray) -> None:
+        """Writes the commands of world ``worlds[k]``'s action ``actions[k]`` (0..5) into
+        ``out[:, worlds[k]]``; ``out`` is (n_cmd, N, 3), ``worlds`` and ``actions`` (K,) integers."""
+        keys = self._state[worlds] * len(ACTIONS) + actions
+        for key in np.unique(keys).tolist():
+            commands, following = self._plans.get(key) or self._new_plan(key)
+            chosen = worlds[keys == key]
+            out[:, chosen] = commands[:, None, :]
+            self._state[chosen] = following
+
+    def _new_plan(self, key: int) -> tuple[np.ndarray, int]:
+        last, action = divmod(key, len(ACTIONS))
+        self._controller.reset(self._lasts[last])
+        plan = self._controller.plan(action, *self._args)
+        end = plan[-1].tobytes()
+        if end not in self._ids:
+            self._ids[end] = len(self._lasts)
+            self._lasts.append(plan[-1].copy())
+        if len(self._plans) >= self._CACHE_SIZE:
+            self._plans.clear()
+        self._plans[key] = (self._convert(plan) if self._convert else plan, self._ids[end])
+        return self._plans[key]

@@ -8,10 +8,11 @@ device or a GPU (``device="cuda"``). What every world does is the task's, piece 
   arena ``seed`` is given what ``env.reset()`` of the dm_control environment seeded ``seed``
   produced (the obstacle slots' poses, sizes and bounds as per-world model fields; qpos, qvel,
   ctrl). So both backends drive the same arena from the same state.
-- **Actions** go through the same :class:`~nirl_mj.sim.drive.DriveController` (one per world,
-  one shared plan cache) into wheel commands, one per command period (default 10 ms); on the
-  planar drive a kernel turns them into world-frame velocities at every period, as
-  ``Robotino.wheel_commander``.
+- **Actions** go through the same :class:`~nirl_mj.sim.drive.DriveController` into wheel
+  commands, one per command period (default 10 ms): discrete ones through its batch form
+  (:class:`~nirl_mj.sim.drive.BatchDriveController`, the same plans for every world at once),
+  continuous ones through one controller per world; on the planar drive a kernel turns them into
+  world-frame velocities at every period, as ``Robotino.wheel_commander``.
 - **Outcomes** are checked when the task checks them: after every command period but the last
   (the task's last check falls one physics step before the decision's end), then, once the state
   is brought up to date at the end of the decision (``forward``, as the task's ``after_step``),
@@ -66,7 +67,7 @@ import numpy as np
 
 from nirl_mj.data import features
 from nirl_mj.data.trajectory import Trajectory, TrajectoryRecorder
-from nirl_mj.sim.drive import BODY_RADIUS, DriveController, body_twist
+from nirl_mj.sim.drive import BODY_RADIUS, BatchDriveController, DriveController, body_twist
 from nirl_mj.sim.episode import action_command
 from nirl_mj.sim.robot import yaw_from_quat
 from nirl_mj.sim.sensing import ray_angles, sensor_readings, target_sight
@@ -239,8 +240,13 @@ class WarpWorlds:
             self._ray_dist = wp.zeros((self.n, n_rays), dtype=float)
             self._ray_geom = wp.zeros((self.n, n_rays), dtype=int)
             self._ray_normal = wp.zeros((self.n, n_rays), dtype=wp.vec3)
-        self._plans: dict = {}
-        self._drives = [DriveController(cache=self._plans) for _ in range(self.n)]
+        if control.actions == "continuous":  # a twist per world: one controller each, one plan memo
+            plans: dict = {}
+            self._drives = [DriveController(cache=plans) for _ in range(self.n)]
+        else:
+            self._batch = BatchDriveController(self.n, control.speed, control.decision_period,
+                                               control.command_period, control.max_accel,
+                                               convert=body_twist if self._planar else None)  # fmt: skip
         self.seeds = np.full(self.n, -1, dtype=np.int64)
         self.steps = np.zeros(self.n, dtype=np.int64)
         self.outcomes = np.full(self.n, IDLE, dtype=np.int32)
@@ -277,8 +283,11 @@ class WarpWorlds:
                     rows[w] = getattr(self._d, name).reshape(rows.shape[1:])
                 self._targets[w] = self._reference.task.layout.target
                 self._start_z[w] = self._d.xpos[self._base, 2]
-                self._drives[w].reset()
+                if self.spec.control.actions == "continuous":
+                    self._drives[w].reset()
                 self.seeds[w], self.steps[w], self.outcomes[w], held[w] = seed, 0, int(Outcome.RUNNING), 0
+            if self.spec.control.actions != "continuous":
+                self._batch.reset(worlds)
             for name, rows in self._host_fields.items():
                 getattr(self._mw, name).assign(rows)
             for name, rows in state.items():
@@ -302,20 +311,17 @@ class WarpWorlds:
         started = time.perf_counter()
         running = self.outcomes == int(Outcome.RUNNING)
         commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
-        bounds = continuous_action_spec(self.spec) if control.actions == "continuous" else None
-        for w in np.flatnonzero(running).tolist():
-            drive = self._drives[w]
-            if bounds is not None:
+        worlds = np.flatnonzero(running)
+        if control.actions == "continuous":
+            bounds = continuous_action_spec(self.spec)
+            for w in worlds.tolist():
                 twist = checked_twist(actions[w], bounds)
-                plan = drive.plan_twist(
+                plan = self._drives[w].plan_twist(
                     twist, control.decision_period, control.command_period, control.max_accel
                 )
-            else:
-                plan = drive.plan(
-                    checked_action(actions[w]), control.speed, control.decision_period,
-                    control.command_period, control.max_accel,
-                )  # fmt: skip
-            commands[:, w] = body_twist(plan) if self._planar else plan
+                commands[:, w] = body_twist(plan) if self._planar else plan
+        else:
+            self._batch.plan(worlds, _checked_actions(actions, worlds), commands)
         dw = self._dw
         planned = time.perf_counter()
         self.seconds["commands"] += planned - started
@@ -631,3 +637,16 @@ def _kernels() -> _Kernels:
                 qvel[w, j] = kept_qvel[w, j]
 
     return _Kernels(command, touches, judge, hold)
+
+
+def _checked_actions(actions: Sequence[Any], worlds: np.ndarray) -> np.ndarray:
+    """The discrete actions of ``worlds`` as an int64 array, each checked as the task checks one
+    (:func:`~nirl_mj.sim.task.checked_action`, whose error names a bad one)."""
+    try:
+        chosen = np.asarray(actions)[worlds]
+    except (ValueError, IndexError, TypeError):  # ragged or odd: checked one by one below
+        chosen = None
+    if chosen is not None and chosen.ndim == 1 and np.issubdtype(chosen.dtype, np.integer):
+        if chosen.size == 0 or (chosen.min() >= 0 and chosen.max() < features.N_ACTIONS):
+            return chosen.astype(np.int64)
+    return np.array([checked_action(actions[w]) for w in worlds.tolist()], dtype=np.int64)
