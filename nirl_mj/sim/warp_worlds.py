@@ -240,6 +240,12 @@ class WarpWorlds:
             self._ray_dist = wp.zeros((self.n, n_rays), dtype=float)
             self._ray_geom = wp.zeros((self.n, n_rays), dtype=int)
             self._ray_normal = wp.zeros((self.n, n_rays), dtype=wp.vec3)
+        self._ray_host = (
+            np.zeros((self.n, n_rays, 3), np.float32),
+            np.zeros((self.n, n_rays, 3), np.float32),
+        )
+        """The rays' origins and directions on the host, (N, rays, 3) float32 each, refilled by each
+        sensing."""
         if control.actions == "continuous":  # a twist per world: one controller each, one plan memo
             plans: dict = {}
             self._drives = [DriveController(cache=plans) for _ in range(self.n)]
@@ -424,13 +430,16 @@ class WarpWorlds:
         world = self._angles[None, :] + yaw[:, None]
         to_target = self._targets - origin[:, :2]
         target_distance = np.hypot(to_target[:, 0], to_target[:, 1])
-        vec = np.zeros((self.n, self._angles.size + 1, 3))
+        # computed in float64 as the task does, rounded once into the rays' float32 buffers (their
+        # z components stay 0), which live as long as the worlds: no per-step allocation
+        pnt, vec = self._ray_host
         vec[:, :-1, 0], vec[:, :-1, 1] = np.cos(world), np.sin(world)
         vec[:, -1, :2] = to_target / np.maximum(target_distance, 1e-9)[:, None]
+        pnt[...] = origin[:, None, :]
         cast = time.perf_counter()
         with wp.ScopedDevice(self.device):
-            self._ray_pnt.assign(np.repeat(origin[:, None, :], vec.shape[1], axis=1).astype(np.float32))
-            self._ray_vec.assign(vec.astype(np.float32))
+            self._ray_pnt.assign(pnt)
+            self._ray_vec.assign(vec)
             world_only = wp.types.vector(6, dtype=float)(1, 0, 0, 0, 0, 0)  # geom group 0, as mj_multiRay
             mjw.rays(
                 self._mw, dw, self._ray_pnt, self._ray_vec, world_only, True, self._ray_exclude,
