@@ -147,20 +147,46 @@ def test_batch_controller_gives_each_world_its_own_controllers_commands():
 
     rng = np.random.default_rng(3)
     n, args = 7, (2.0, 0.5, 0.01, 4.0)
-    for convert in (None, body_twist):
+    for convert, cache_size in ((None, 4096), (body_twist, 4096), (None, 5)):
         batch = BatchDriveController(n, *args, convert=convert)
+        batch._CACHE_SIZE = cache_size  # 5: the memo is emptied and the last commands compacted often
         single = [DriveController() for _ in range(n)]
         for decision in range(40):
             worlds = np.flatnonzero(rng.random(n) < 0.7)  # some worlds sit a decision out
-            actions = rng.integers(0, 6, size=worlds.size)
-            out = np.full((50, n, 3), np.nan)
+            actions = rng.integers(0, 6, size=worlds.size).astype(np.int8)
+            out = np.full((50, n, 3), np.nan, dtype=np.float32)  # WarpWorlds' commands are float32
             batch.plan(worlds, actions, out)
             for w, a in zip(worlds.tolist(), actions.tolist(), strict=True):
                 plan = single[w].plan(a, *args)
-                np.testing.assert_array_equal(out[:, w], convert(plan) if convert else plan)
+                np.testing.assert_array_equal(
+                    out[:, w], (convert(plan) if convert else plan).astype(np.float32)
+                )
             assert np.isnan(np.delete(out, worlds, axis=1)).all()  # the others untouched
             if decision % 9 == 8:
                 ended = rng.choice(n, size=2, replace=False)
                 batch.reset(ended)
                 for w in ended.tolist():
                     single[w].reset()
+        assert len(batch._lasts) <= max(cache_size, 64)  # compacted, not growing without bound
+
+
+@pytest.mark.parametrize("bad", [[0, 6], [0, -1], [0.0, 1.0], [True, False]])
+def test_batch_controller_refuses_what_is_not_an_action(bad):
+    from nirl_mj.sim.drive import BatchDriveController
+
+    batch = BatchDriveController(2, 2.0, 0.5, 0.01, 4.0)
+    with pytest.raises(ValueError, match="one action 0..5 per world"):
+        batch.plan(np.arange(2), np.asarray(bad), np.zeros((50, 2, 3)))
+
+
+@pytest.mark.parametrize(
+    "actions", [[True, 1, 2], [1, 2.0, 3], [0, 6, 1], np.array([0, -1, 2]), np.array([0.0, 1, 2])]
+)
+def test_checked_actions_refuses_as_checked_action(actions):
+    """The Warp worlds' batch check refuses what the task's one-action check refuses, naming it."""
+    from nirl_mj.sim.task import checked_actions
+
+    with pytest.raises(ValueError, match="action must be one integer in 0..5"):
+        checked_actions(actions, np.arange(3))
+    assert checked_actions(np.array([5, 0, 9], np.int8), np.arange(2)).tolist() == [5, 0]  # world 2 idle
+    assert checked_actions([5, 0, "idle"], np.arange(2)).tolist() == [5, 0]

@@ -345,14 +345,17 @@ class DriveController:
 
 
 class BatchDriveController:
-    """:class:`DriveController` for N worlds at once, discrete actions only: a decision costs a few
-    numpy operations per distinct (last command, action) pair among the worlds instead of Python
-    per world (many worlds of one task share a handful of them: cruising, turning from cruise).
+    """:class:`DriveController` for N worlds at once, discrete actions only: a decision sorts the
+    worlds by their (last command, action) pair, then costs a few numpy operations per distinct
+    pair instead of Python per world (many worlds of one task share a handful: cruising, turning
+    from cruise).
 
     Each world's last command is an index into the distinct last commands seen; a pair's plan is
     :meth:`DriveController.plan`'s, computed once (bit for bit the same), then passed through
     ``convert`` (e.g. :func:`body_twist` for the planar drive) and kept. The arguments after ``n``
-    are :meth:`DriveController.plan`'s (speed m/s, period and cmd_dt s, max_accel m/s^2).
+    are :meth:`DriveController.plan`'s (speed m/s, period and cmd_dt s, max_accel m/s^2). Memory is
+    bounded: past ``_CACHE_SIZE`` plans the memo is emptied and the last commands that no world
+    holds are forgotten.
     """
 
     _CACHE_SIZE = 4096
@@ -368,8 +371,7 @@ class BatchDriveController:
     ) -> None:
         self._args = (speed, period, cmd_dt, max_accel)
         self._convert = convert
-        self._controller = DriveController(cache={})
-        self._lasts: list[np.ndarray] = [np.zeros(3)]
+        self._lasts: list[np.ndarray] = [np.zeros(3)]  # id -> last command (rad/s); id 0: at rest
         self._ids: dict[bytes, int] = {self._lasts[0].tobytes(): 0}
         self._plans: dict[int, tuple[np.ndarray, int]] = {}  # last id * actions + action -> (plan, next id)
         self._state = np.zeros(int(n), dtype=np.int64)  # each world's last command, by id
@@ -379,24 +381,44 @@ class BatchDriveController:
         self._state[np.asarray(worlds, dtype=np.int64)] = 0
 
     def plan(self, worlds: np.ndarray, actions: np.ndarray, out: np.ndarray) -> None:
-        """Writes the commands of world ``worlds[k]``'s action ``actions[k]`` (0..5) into
-        ``out[:, worlds[k]]``; ``out`` is (n_cmd, N, 3), ``worlds`` and ``actions`` (K,) integers."""
-        keys = self._state[worlds] * len(ACTIONS) + actions
-        for key in np.unique(keys).tolist():
+        """Writes the commands of world ``worlds[k]``'s action ``actions[k]`` into ``out[:, worlds[k]]``.
+
+        ``worlds``: (K,) distinct world indices; ``actions``: (K,) integers 0..5; ``out``:
+        (n_cmd, N, 3), wheel speeds (rad/s), or what ``convert`` makes of them (the planar drive's
+        body twist: m/s, m/s, rad/s).
+        """
+        worlds, actions = np.asarray(worlds, dtype=np.int64), np.asarray(actions)
+        if actions.shape != worlds.shape or not np.issubdtype(actions.dtype, np.integer) or (
+            actions.size and not (0 <= actions.min() and actions.max() < len(ACTIONS))
+        ):  # fmt: skip
+            raise ValueError(f"BatchDriveController.plan: one action 0..{len(ACTIONS) - 1} per world "
+                             f"({worlds.size}), got {actions!r}")  # fmt: skip
+        if len(self._plans) >= self._CACHE_SIZE:
+            self._forget()
+        keys = self._state[worlds] * len(ACTIONS) + actions.astype(np.int64)
+        order = np.argsort(keys, kind="stable")
+        distinct, starts = np.unique(keys[order], return_index=True)
+        for key, group in zip(distinct.tolist(), np.split(worlds[order], starts[1:]), strict=True):
             commands, following = self._plans.get(key) or self._new_plan(key)
-            chosen = worlds[keys == key]
-            out[:, chosen] = commands[:, None, :]
-            self._state[chosen] = following
+            out[:, group] = commands[:, None, :]
+            self._state[group] = following
 
     def _new_plan(self, key: int) -> tuple[np.ndarray, int]:
         last, action = divmod(key, len(ACTIONS))
-        self._controller.reset(self._lasts[last])
-        plan = self._controller.plan(action, *self._args)
+        controller = DriveController()  # its own memo, dropped with it: the plans are kept here
+        controller.reset(self._lasts[last])
+        plan = controller.plan(action, *self._args)
         end = plan[-1].tobytes()
         if end not in self._ids:
             self._ids[end] = len(self._lasts)
             self._lasts.append(plan[-1].copy())
-        if len(self._plans) >= self._CACHE_SIZE:
-            self._plans.clear()
         self._plans[key] = (self._convert(plan) if self._convert else plan, self._ids[end])
         return self._plans[key]
+
+    def _forget(self) -> None:
+        """Empties the memo and keeps only the last commands some world holds (at rest first)."""
+        held = np.unique(np.concatenate([[0], self._state]))
+        self._state = np.searchsorted(held, self._state)
+        self._lasts = [self._lasts[i] for i in held.tolist()]
+        self._ids = {last.tobytes(): i for i, last in enumerate(self._lasts)}
+        self._plans = {}

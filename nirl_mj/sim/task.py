@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import dm_env
 import mujoco
@@ -415,6 +415,17 @@ def checked_action(action) -> int:
             f"({', '.join(f'{i} {n}' for i, n in enumerate(features.ACTION_NAMES))}), got {action!r}"
         )
     return int(a)
+
+
+def checked_actions(actions: Sequence, worlds: np.ndarray) -> np.ndarray:
+    """The discrete actions ``actions[w]`` of the worlds ``worlds`` (K,), as an int64 array (K,),
+    each accepted or refused as :func:`checked_action` does (whose error names a bad one). A numpy
+    integer array is checked at once; anything else one action at a time."""
+    if isinstance(actions, np.ndarray) and actions.ndim == 1 and np.issubdtype(actions.dtype, np.integer):
+        chosen = actions[worlds]
+        if chosen.size == 0 or (chosen.min() >= 0 and chosen.max() < features.N_ACTIONS):
+            return chosen.astype(np.int64)
+    return np.array([checked_action(actions[w]) for w in np.asarray(worlds).tolist()], dtype=np.int64)
 
 
 def continuous_action_spec(spec: TaskSpec) -> specs.BoundedArray:

@@ -76,7 +76,7 @@ from nirl_mj.sim.task import (
     AIRBORNE,
     UPRIGHT,
     Outcome,
-    checked_action,
+    checked_actions,
     checked_twist,
     continuous_action_spec,
     make_env,
@@ -246,9 +246,8 @@ class WarpWorlds:
         )
         """The rays' origins and directions on the host, (N, rays, 3) float32 each, refilled by each
         sensing."""
-        if control.actions == "continuous":  # a twist per world: one controller each, one plan memo
-            plans: dict = {}
-            self._drives = [DriveController(cache=plans) for _ in range(self.n)]
+        if control.actions == "continuous":  # a twist per world: one controller each
+            self._drives = [DriveController() for _ in range(self.n)]
         else:
             self._batch = BatchDriveController(self.n, control.speed, control.decision_period,
                                                control.command_period, control.max_accel,
@@ -327,7 +326,7 @@ class WarpWorlds:
                 )
                 commands[:, w] = body_twist(plan) if self._planar else plan
         else:
-            self._batch.plan(worlds, _checked_actions(actions, worlds), commands)
+            self._batch.plan(worlds, checked_actions(actions, worlds), commands)
         dw = self._dw
         planned = time.perf_counter()
         self.seconds["commands"] += planned - started
@@ -646,16 +645,3 @@ def _kernels() -> _Kernels:
                 qvel[w, j] = kept_qvel[w, j]
 
     return _Kernels(command, touches, judge, hold)
-
-
-def _checked_actions(actions: Sequence[Any], worlds: np.ndarray) -> np.ndarray:
-    """The discrete actions of ``worlds`` as an int64 array, each checked as the task checks one
-    (:func:`~nirl_mj.sim.task.checked_action`, whose error names a bad one)."""
-    try:
-        chosen = np.asarray(actions)[worlds]
-    except (ValueError, IndexError, TypeError):  # ragged or odd: checked one by one below
-        chosen = None
-    if chosen is not None and chosen.ndim == 1 and np.issubdtype(chosen.dtype, np.integer):
-        if chosen.size == 0 or (chosen.min() >= 0 and chosen.max() < features.N_ACTIONS):
-            return chosen.astype(np.int64)
-    return np.array([checked_action(actions[w]) for w in worlds.tolist()], dtype=np.int64)
