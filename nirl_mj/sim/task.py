@@ -420,12 +420,21 @@ def checked_action(action) -> int:
 def checked_actions(actions: Sequence, worlds: np.ndarray) -> np.ndarray:
     """The discrete actions ``actions[w]`` of the worlds ``worlds`` (K,), as an int64 array (K,),
     each accepted or refused as :func:`checked_action` does (whose error names a bad one). A numpy
-    integer array is checked at once; anything else one action at a time."""
+    integer array, or actions that are all Python ints, are checked at once; anything else one
+    action at a time."""
     if isinstance(actions, np.ndarray) and actions.ndim == 1 and np.issubdtype(actions.dtype, np.integer):
-        chosen = actions[worlds]
-        if chosen.size == 0 or (chosen.min() >= 0 and chosen.max() < features.N_ACTIONS):
-            return chosen.astype(np.int64)
-    return np.array([checked_action(actions[w]) for w in np.asarray(worlds).tolist()], dtype=np.int64)
+        chosen = picked = actions[worlds]
+    else:
+        picked = [actions[w] for w in np.asarray(worlds).tolist()]
+        try:  # type() and not isinstance: a bool is refused, as checked_action refuses it
+            chosen = np.array(picked, dtype=np.int64) if all(type(a) is int for a in picked) else None
+        except OverflowError:
+            chosen = None
+        if chosen is None:
+            return np.array([checked_action(a) for a in picked], dtype=np.int64)
+    if chosen.size and not (chosen.min() >= 0 and chosen.max() < features.N_ACTIONS):
+        return np.array([checked_action(a) for a in picked], dtype=np.int64)  # names the bad one
+    return chosen.astype(np.int64)
 
 
 def continuous_action_spec(spec: TaskSpec) -> specs.BoundedArray:
