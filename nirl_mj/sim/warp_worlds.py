@@ -290,9 +290,9 @@ class WarpWorlds:
                 self._start_z[w] = self._d.xpos[self._base, 2]
                 if self.spec.control.actions == "continuous":
                     self._drives[w].reset()
+                else:
+                    self._batch.reset([w])
                 self.seeds[w], self.steps[w], self.outcomes[w], held[w] = seed, 0, int(Outcome.RUNNING), 0
-            if self.spec.control.actions != "continuous":
-                self._batch.reset(worlds)
             for name, rows in self._host_fields.items():
                 getattr(self._mw, name).assign(rows)
             for name, rows in state.items():
