@@ -59,7 +59,7 @@ import functools
 import math
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import dm_env
@@ -246,12 +246,13 @@ class WarpWorlds:
         )
         """The rays' origins and directions on the host, (N, rays, 3) float32 each, refilled by each
         sensing."""
-        if control.actions == "continuous":  # a twist per world: one controller each
-            self._drives = [DriveController() for _ in range(self.n)]
-        else:
-            self._batch = BatchDriveController(self.n, control.speed, control.decision_period,
-                                               control.command_period, control.max_accel,
-                                               convert=body_twist if self._planar else None)  # fmt: skip
+        convert = body_twist if self._planar else None  # the planar drive takes the body twist
+        self._discrete = control.actions != "continuous"
+        self._drive = (
+            BatchDriveController(self.n, control.speed, control.decision_period, control.command_period,
+                                 control.max_accel, convert)
+            if self._discrete else _TwistDrives(self.n, spec, convert)
+        )  # fmt: skip
         self.seeds = np.full(self.n, -1, dtype=np.int64)
         self.steps = np.zeros(self.n, dtype=np.int64)
         self.outcomes = np.full(self.n, IDLE, dtype=np.int32)
@@ -288,10 +289,7 @@ class WarpWorlds:
                     rows[w] = getattr(self._d, name).reshape(rows.shape[1:])
                 self._targets[w] = self._reference.task.layout.target
                 self._start_z[w] = self._d.xpos[self._base, 2]
-                if self.spec.control.actions == "continuous":
-                    self._drives[w].reset()
-                else:
-                    self._batch.reset([w])
+                self._drive.reset([w])
                 self.seeds[w], self.steps[w], self.outcomes[w], held[w] = seed, 0, int(Outcome.RUNNING), 0
             for name, rows in self._host_fields.items():
                 getattr(self._mw, name).assign(rows)
@@ -312,21 +310,12 @@ class WarpWorlds:
         Updates :attr:`outcomes`, :attr:`steps` and :attr:`observation`."""
         if len(actions) != self.n:
             raise ValueError(f"step: one action per world ({self.n}), got {len(actions)}")
-        wp, control = self._wp, self.spec.control
+        wp = self._wp
         started = time.perf_counter()
         running = self.outcomes == int(Outcome.RUNNING)
         commands = np.zeros((self._n_cmd, self.n, 3), dtype=np.float32)
         worlds = np.flatnonzero(running)
-        if control.actions == "continuous":
-            bounds = continuous_action_spec(self.spec)
-            for w in worlds.tolist():
-                twist = checked_twist(actions[w], bounds)
-                plan = self._drives[w].plan_twist(
-                    twist, control.decision_period, control.command_period, control.max_accel
-                )
-                commands[:, w] = body_twist(plan) if self._planar else plan
-        else:
-            self._batch.plan(worlds, checked_actions(actions, worlds), commands)
+        self._drive.plan(worlds, checked_actions(actions, worlds) if self._discrete else actions, commands)
         dw = self._dw
         planned = time.perf_counter()
         self.seconds["commands"] += planned - started
@@ -645,3 +634,27 @@ def _kernels() -> _Kernels:
                 qvel[w, j] = kept_qvel[w, j]
 
     return _Kernels(command, touches, judge, hold)
+
+
+class _TwistDrives:
+    """:class:`~nirl_mj.sim.drive.BatchDriveController`'s counterpart for continuous actions: one
+    :class:`~nirl_mj.sim.drive.DriveController` per world (a twist seldom repeats: nothing to
+    share), each twist checked as the task checks it."""
+
+    def __init__(self, n: int, spec: TaskSpec, convert: Callable[[np.ndarray], np.ndarray] | None) -> None:
+        self._drives = [DriveController() for _ in range(n)]
+        self._bounds, self._control, self._convert = continuous_action_spec(spec), spec.control, convert
+
+    def reset(self, worlds: Sequence[int]) -> None:
+        """The worlds' last commands back to zero (an episode's start)."""
+        for w in worlds:
+            self._drives[w].reset()
+
+    def plan(self, worlds: np.ndarray, actions: Sequence[Any], out: np.ndarray) -> None:
+        """Writes world ``w``'s commands for its twist ``actions[w]`` (forward m/s, yaw rate rad/s)
+        into ``out[:, w]`` (n_cmd, N, 3), for every ``w`` in ``worlds``."""
+        c = self._control
+        for w in worlds.tolist():
+            twist = checked_twist(actions[w], self._bounds)
+            plan = self._drives[w].plan_twist(twist, c.decision_period, c.command_period, c.max_accel)
+            out[:, w] = self._convert(plan) if self._convert else plan
