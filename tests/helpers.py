@@ -22,6 +22,20 @@ OPEN = spec.replace(
 )
 
 
+def random_trajectory(rng: np.random.Generator, n: int, outcome: str) -> Trajectory:
+    """n decisions of random phi(s) (valid ranges) and actions, ending in ``outcome``."""
+    phi = np.zeros((n + 1, 16), dtype=np.float32)
+    phi[:, :7] = rng.integers(0, 8, size=(n + 1, 7))
+    phi[:, 7] = rng.integers(1, 10, size=n + 1)
+    phi[:, 8] = rng.integers(0, 2, size=n + 1)
+    phi[:, 9:] = rng.integers(0, 2, size=(n + 1, 7))
+    task = {"arena": {"target": [90.0, 90.0]}, "control": {"speed": 2.0, "decision_period": 0.5}}
+    return Trajectory(features=phi, actions=rng.integers(0, 6, size=n), ranges=np.zeros((n + 1, 9)),
+                      poses=np.zeros((n + 1, 3)), times=0.5 * np.arange(n + 1),
+                      arena_seed=int(rng.integers(1e9)), task=task, speed=2.0, outcome=outcome,
+                      demonstrator="test")  # fmt: skip
+
+
 # The tables of a tiny experiment file: a 30 m arena with 3 obstacles on the planar drive, episodes of
 # ~30 decisions, 2 demonstrations; seconds per cell, big enough that the policies differ.
 TINY_TABLES = """

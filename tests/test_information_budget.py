@@ -10,6 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from helpers import random_trajectory
 
 from nirl_mj.data.trajectory import Trajectory
 from nirl_mj.experiments import compare
@@ -89,19 +90,6 @@ def test_the_compare_summary_and_table_carry_reads():
 # -- the learner touches what its reads say --------------------------------------------------------
 
 
-def _trajectory(rng: np.random.Generator, n: int, outcome: str) -> Trajectory:
-    phi = np.zeros((n + 1, 16), dtype=np.float32)
-    phi[:, :7] = rng.integers(0, 8, size=(n + 1, 7))
-    phi[:, 7] = rng.integers(1, 10, size=n + 1)
-    phi[:, 8] = rng.integers(0, 2, size=n + 1)
-    phi[:, 9:] = rng.integers(0, 2, size=(n + 1, 7))
-    task = {"arena": {"target": [90.0, 90.0]}, "control": {"speed": 2.0, "decision_period": 0.5}}
-    return Trajectory(features=phi, actions=rng.integers(0, 6, size=n), ranges=np.zeros((n + 1, 9)),
-                      poses=np.zeros((n + 1, 3)), times=0.5 * np.arange(n + 1),
-                      arena_seed=int(rng.integers(1e9)), task=task, speed=2.0, outcome=outcome,
-                      demonstrator="test")  # fmt: skip
-
-
 SWAP = {"target": "collision", "collision": "target", "physics_error": "target", "timeout": "timeout"}
 
 
@@ -118,12 +106,12 @@ def _run_loop(config: LearnerConfig, scrambled: bool) -> dict:
     """Two iterations of the loop on fixed fake rollouts; ``scrambled`` scrambles the task's
     outcome and reward of every rollout (:func:`_scramble`)."""
     rng = np.random.default_rng(0)
-    demos = [_trajectory(rng, 12, "target") for _ in range(3)]
+    demos = [random_trajectory(rng, 12, "target") for _ in range(3)]
     outcomes = ["target", "collision", "timeout", "collision"]
 
     def rollouts(agent, seeds):
         batch = np.random.default_rng(seeds[0])
-        trajectories = [_trajectory(batch, 8, outcomes[i % 4]) for i in range(len(seeds))]
+        trajectories = [random_trajectory(batch, 8, outcomes[i % 4]) for i in range(len(seeds))]
         if scrambled:
             trajectories = [_scramble(t, batch) for t in trajectories]
         return trajectories
@@ -275,7 +263,7 @@ def test_absorbing_values_edge_cases():
 
 def test_selection_rules_read_no_validation():
     rng = np.random.default_rng(1)
-    demos = [_trajectory(rng, 10, "target") for _ in range(2)]
+    demos = [random_trajectory(rng, 10, "target") for _ in range(2)]
     for rule in ("demo_balanced", "last", "demo_accuracy"):
         config = LearnerConfig.preset("default", selection=rule, trajectories_per_episode=2)
         loop = IrlLoop(config, demos, seed=0)

@@ -321,7 +321,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             changes["episodes"] = args.episodes
         config = LearnerConfig.preset(args.variant or "default", **changes)
         spec, demos, seed = _task(args), args.demos, args.seed or 0
-        backend = _backend(args)
+        backend = _backend(args, worlds=config.loop.trajectories_per_episode)
     done = RunDir(args.out).iterations_done() if args.resume else 0
     recording = Recording(_check_rerun(args), overwrite=args.overwrite) if args.rerun else None
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
@@ -492,15 +492,16 @@ def _changed_values(base: specs.TaskSpec, spec: specs.TaskSpec) -> list[str]:
     return changed
 
 
-def _backend(args: argparse.Namespace, saved: dict | None = None) -> Backend:
+def _backend(args: argparse.Namespace, saved: dict | None = None, worlds: int | None = None) -> Backend:
     """The backend that --backend, --worlds and --device name (a resumed training: the run's ``saved``
-    one unless they say otherwise)."""
+    one unless they say otherwise); ``worlds``, when given, replaces the default count of worlds
+    (a training drives no more episodes at once than its iteration's trajectories)."""
     saved = saved or {}
     name = args.backend or saved.get("name", "cpu")
     if name == "cpu" and (args.worlds or args.device):
         raise SpecError("--worlds and --device go with --backend warp (the cpu backend runs one world)")
     default = Backend()
-    return Backend(name, args.worlds or saved.get("worlds", default.worlds),
+    return Backend(name, args.worlds or saved.get("worlds", worlds or default.worlds),
                    args.device or saved.get("device", default.device))  # fmt: skip
 
 

@@ -76,7 +76,8 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
                 "--worlds",
                 type=_positive_int,
                 default=None,
-                help="with --backend warp: worlds stepped at once (default: 64)",
+                help="with --backend warp: worlds stepped at once (default: 64; train: the learner's "
+                "trajectories per iteration, 10 by default)",
             )
             parser.add_argument("--device", choices=DEVICES, default=None,
                                 help="with --backend warp: Warp's device (default: cuda)")  # fmt: skip

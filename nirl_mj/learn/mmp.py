@@ -330,21 +330,20 @@ class MaxMarginStep:
         self.loop, self.own = loop, own
         self.demo_phi, self.demo_actions = stack_pairs(demos)
         fs = trajectory_pair_features(demos, self.loop.reward_features)
+        # "policy" matching: pi_j(. | s_n) of every policy that drove the rollouts so far, (N, 6) each
+        self.policies: list[np.ndarray] = []
         if self.own.matching == "paper":
-            mu_e = feature_expectations(fs, self.loop.gamma)  # eq. 11
-            self.expert = np.broadcast_to(mu_e, (len(self.demo_actions), mu_e.size)).copy()
-        else:
-            self.expert = np.concatenate([discounted_suffix_sums(f, self.loop.gamma) for f in fs])
+            self.expert_mu = feature_expectations(fs, self.loop.gamma)  # eq. 11, (D,)
+            return
+        self.expert = np.concatenate([discounted_suffix_sums(f, self.loop.gamma) for f in fs])
         # mu_E(s_{t+1}, a_{t+1}) along the demonstration (zero after its last pair), (N, D)
         demonstrated = pair_features(self.demo_phi, self.demo_actions, self.loop.reward_features)
         self.expert_next = (self.expert - demonstrated) / self.loop.gamma
         self.blocks = state_reward_features(self.demo_phi, self.loop.reward_features)  # (N, B)
-        # "policy" matching: pi_j(. | s_n) of every policy that drove the rollouts so far, (N, 6) each
-        self.policies: list[np.ndarray] = []
 
     def learner_future(self, trajectories: Sequence) -> np.ndarray:
-        """What follows each demonstrated pair on the learner's side, mu(next), (N, D):
-        the learner's own mean discounted sum (``future_mix`` = 1), the expert's
+        """What follows each demonstrated pair on the learner's side, mu(next), (N, D), under the
+        per-pair readings: the learner's own mean discounted sum (``future_mix`` = 1), the expert's
         continuation (0, akin to SCIRL's heuristic, see docs/ALGORITHM.md), or a mixture."""
         future = (1.0 - self.own.future_mix) * self.expert_next
         if self.own.future_mix:
@@ -353,28 +352,10 @@ class MaxMarginStep:
             future = future + self.own.future_mix * mean_sum
         return future
 
-    def learner_matching(self, trajectories: Sequence) -> np.ndarray:
-        """The learner's side of eq. 13 for every demonstrated state and action, (N, 6, D)."""
-        from nirl_mj.learn.reward import all_action_features
-
-        if self.own.matching == "paper":
-            fs = trajectory_pair_features(trajectories, self.loop.reward_features, skip_empty=True)
-            mu = feature_expectations(fs, self.loop.gamma)  # eq. 11 for the learner
-            return np.broadcast_to(mu, (len(self.demo_actions), 6, mu.size)).copy()
-        # Occupancy: f(s, a) now, then what follows (learner_future).
-        future = self.learner_future(trajectories)
-        return (
-            all_action_features(self.demo_phi, self.loop.reward_features)
-            + self.loop.gamma * future[..., None, :]
-        )
-
-    def margin_loss(self, greedy_on_demos: np.ndarray) -> np.ndarray:
-        """l(s, a) for every demonstrated state and action, (N, 6)."""
-        if self.own.matching == "paper":
-            # Paper: 0 if the learned policy reproduces the expert's pair, else l.
-            per_pair = np.where(greedy_on_demos == self.demo_actions, 0.0, self.loop.margin_loss)
-            return np.repeat(per_pair[:, None], 6, axis=1)
-        return structured_loss(self.demo_actions, self.loop.margin_loss)
+    def paper_margin_loss(self, greedy_on_demos: np.ndarray) -> float:
+        """The paper reading's loss, averaged over the demonstrated pairs: l where the learned policy
+        does not reproduce the expert's pair, else 0."""
+        return float(np.mean(np.where(greedy_on_demos == self.demo_actions, 0.0, self.loop.margin_loss)))
 
     def update(
         self,
@@ -387,32 +368,29 @@ class MaxMarginStep:
         """The next theta and the margin t (-min J: how far the best reward still puts the
         expert above every loss-augmented alternative; under the per-state occupancy reading the
         expert's own action is an alternative, so t <= 0 there).
-        ``context`` (the rollouts' policy) is not needed here."""
+        ``context`` (the rollouts' policy) is read by the "policy" matching only."""
         lr = self.own.mmp_step_size / (1.0 + self.own.mmp_step_decay * iteration)
-        loss = self.margin_loss(greedy_on_demos)
+        lam, steps = self.own.mmp_lambda, self.own.mmp_steps
         if self.own.matching == "paper":
-            learner = self.learner_matching(trajectories)
-            theta, j_min = minimise_mmp(
-                theta, self.expert, learner, loss, self.own.mmp_lambda, self.own.mmp_steps, lr
-            )
-        else:  # the same objective, without building the (N, 6, D) array
-            policies = None
-            if self.own.matching == "policy":
-                if context is None:
-                    raise ValueError("NIRL's policy matching needs the rollouts' policy (RolloutContext)")
-                self.policies.append(context.action_probabilities(self.demo_phi))
-                policies = np.stack(self.policies)
-            offset = self.loop.gamma * self.learner_future(trajectories) - self.expert
-            theta, j_min = minimise_mmp_blocks(
-                theta,
-                self.blocks,
-                offset,
-                loss,
-                self.own.mmp_lambda,
-                self.own.mmp_steps,
-                lr,
-                policies=policies,
-            )
+            # eq. 13 on eq. 11's expectations: every demonstrated pair has the same expert side
+            # mu_E and the same alternative mu (the learner's whole trajectories) whatever the
+            # action, so J = theta . (mu - mu_E) + mean l + lambda/2 ||theta||^2: one pair, one action
+            fs = trajectory_pair_features(trajectories, self.loop.reward_features, skip_empty=True)
+            mu = feature_expectations(fs, self.loop.gamma)  # eq. 11 for the learner
+            loss = np.array([[self.paper_margin_loss(greedy_on_demos)]])
+            theta, j_min = minimise_mmp(theta, self.expert_mu[None], mu[None, None], loss, lam, steps, lr)
+            return theta, -j_min
+        policies = None
+        if self.own.matching == "policy":
+            if context is None:
+                raise ValueError("NIRL's policy matching needs the rollouts' policy (RolloutContext)")
+            self.policies.append(context.action_probabilities(self.demo_phi))
+            policies = np.stack(self.policies)
+        offset = self.loop.gamma * self.learner_future(trajectories) - self.expert
+        loss = structured_loss(self.demo_actions, self.loop.margin_loss)
+        theta, j_min = minimise_mmp_blocks(
+            theta, self.blocks, offset, loss, lam, steps, lr, policies=policies
+        )  # fmt: skip
         return theta, -j_min
 
     def state(self) -> dict[str, np.ndarray]:

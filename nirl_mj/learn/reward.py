@@ -72,8 +72,14 @@ def all_action_features(phi: np.ndarray, kind: str) -> np.ndarray:
 
 
 def pair_features(phi: np.ndarray, actions: np.ndarray, kind: str) -> np.ndarray:
-    """f(s_t, a_t) for given pairs: phi (N, 16), actions (N,) -> (N, 6 * block)."""
-    return all_action_features(phi, kind)[np.arange(len(actions)), np.asarray(actions, dtype=int)]
+    """f(s_t, a_t) for given pairs: phi (N, 16), actions (N,) -> (N, 6 * block): the state's block
+    in the slot of its action, zeros elsewhere (a row of :func:`all_action_features`)."""
+    block = state_reward_features(phi, kind)
+    n, b = block.shape
+    out = np.zeros((n, N_ACTIONS * b))
+    slots = np.asarray(actions, dtype=int)[:, None] * b + np.arange(b)
+    np.put_along_axis(out, slots, block, axis=1)
+    return out
 
 
 def trajectory_pair_features(trajectories: Sequence, kind: str, skip_empty: bool = False) -> list[np.ndarray]:
