@@ -53,9 +53,12 @@ AVX512 machine, gives 641f16e... there; no result changed. So a key holds every 
 it, each with the machine it came from (the key stays what cells record).
 Re-pinned on 2026-11-30 when the paper reading of the margin (``matching = "paper"``) stopped
 building its (N, 6, D) array of identical rows (the paper variant's theta moved by about 1e-8; no
-other method's arrays changed), for all three machines at once from the Zen 5 machine:
-``tests/digest_platforms.py`` has each library pick the kernels of the machine it stands in for,
-and at 3513ea6 it gave the three digests pinned before, each for its own machine.
+other method's arrays changed; Table I's 25 NIRL-paper cells came out the same, field for field),
+for all three machines at once from the Zen 5 machine: ``tests/digest_platforms.py`` has each
+library pick the kernels of the machine it stands in for, and at 3513ea6 it gave the three
+digests pinned before, each for its own machine. The two AVX512 machines differ in OpenBLAS's
+kernels only: SkylakeX, its own choice on these AMD machines, and Haswell, which the Zen 5
+machine's environment sets (``OPENBLAS_CORETYPE=Haswell``).
 """
 
 from __future__ import annotations
@@ -83,7 +86,7 @@ PINNED = {
     "AuthenticAMD/AVX2": ("fed5b51b5eee4296b82cb1cc5860e79c8742e41873e9cd21a99245da46be918d",),
     "AuthenticAMD/AVX512": (
         "70f9ba98289bb8bbdbfca2df094cafb9784eba57c3c7635883f5c730adcc9475",  # OpenBLAS SkylakeX kernels
-        "446163fac0a2b746ba2fb18e7e82b9763b4c451f5baf1220caacfcbc9ebbecea",  # cpu family 26 (Zen 5)
+        "446163fac0a2b746ba2fb18e7e82b9763b4c451f5baf1220caacfcbc9ebbecea",  # OpenBLAS Haswell kernels
     ),
 }
 """The digests seen by platform (:func:`nirl_mj.experiments.machine.platform_key`): one per machine

@@ -493,38 +493,46 @@ def test_the_paper_readings_margin_is_eq13_with_every_pair_and_action_alike():
     """matching = "paper": eq. 13 with eq. 11's expectations on both sides. Every demonstrated pair has
     the expert side mu_E and every alternative the learner's mu, so the step minimises
     theta . (mu - mu_E) + mean_n l_n + lambda/2 ||theta||^2 over one pair and one action: the same
-    iterates as the objective over all N pairs and 6 actions written out (to rounding), and a
-    hand-computed first step."""
+    iterates as the objective over all N pairs and 6 actions written out (to rounding), and one
+    step by hand (an empty rollout left out of mu; the step size of iteration 2 under a decay)."""
     from nirl_mj.learn.config import LearnerConfig
-    from nirl_mj.learn.mmp import MaxMarginStep, feature_expectations
+    from nirl_mj.learn.mmp import MaxMarginStep, feature_expectations, project_to_ball
     from nirl_mj.learn.reward import trajectory_pair_features
 
     rng = np.random.default_rng(4)
     demos = [random_trajectory(rng, n, "target") for n in (7, 5)]
-    rollouts = [random_trajectory(rng, n, "collision") for n in (3, 6, 4)]
-    config = LearnerConfig.preset("paper", mmp_steps=7)
-    step = MaxMarginStep(config.loop, config.step, demos)
+    rollouts = [random_trajectory(rng, n, "collision") for n in (3, 0, 6, 4)]
+    config = LearnerConfig.preset("paper", mmp_steps=7, mmp_lambda=0.2, mmp_step_decay=0.5)
+    own, kind, gamma = config.step, config.loop.reward_features, config.loop.gamma
+    step = MaxMarginStep(config.loop, own, demos)
     greedy = np.array(step.demo_actions)
     greedy[:5] = (greedy[:5] + 1) % 6  # 5 of the 12 demonstrated pairs missed
-    theta0 = rng.normal(size=step.expert_mu.size) * 0.05
-    theta, margin = step.update(theta0, rollouts, 0, greedy)
+    theta0 = rng.normal(size=96) * 0.05
+    theta, margin = step.update(theta0, rollouts, 2, greedy)
 
-    kind, gamma, own = config.loop.reward_features, config.loop.gamma, config.step
     mu_e = feature_expectations(trajectory_pair_features(demos, kind), gamma)
-    mu = feature_expectations(trajectory_pair_features(rollouts, kind), gamma)
-    n, d = len(greedy), mu.size
+    mu = feature_expectations(trajectory_pair_features([rollouts[i] for i in (0, 2, 3)], kind), gamma)
+    n, lr = len(greedy), own.mmp_step_size / (1.0 + 0.5 * 2)
     per_pair = np.where(greedy == step.demo_actions, 0.0, config.loop.margin_loss)
     written_out = minimise_mmp(theta0, np.tile(mu_e, (n, 1)), np.tile(mu, (n, 6, 1)),
                                np.repeat(per_pair[:, None], 6, axis=1), own.mmp_lambda, own.mmp_steps,
-                               own.mmp_step_size)  # fmt: skip
+                               lr)  # fmt: skip
     np.testing.assert_allclose(theta, written_out[0], rtol=1e-12, atol=1e-12)
     assert margin == pytest.approx(-written_out[1], rel=1e-12)
-    # the first step by hand: the subgradient mu - mu_E + lambda theta0, then into the unit ball
-    value, grad = mmp_objective(theta0, mu_e[None], mu[None, None], np.array([[5 / 12]]), own.mmp_lambda)
-    np.testing.assert_allclose(grad, mu - mu_e + own.mmp_lambda * theta0, rtol=1e-12)
-    assert value == pytest.approx(theta0 @ (mu - mu_e) + 5 / 12 * config.loop.margin_loss
-                                  + own.mmp_lambda / 2 * theta0 @ theta0, rel=1e-12)  # fmt: skip
-    assert d == 96 and not hasattr(step, "expert")  # the paper's f(s, a); no per-pair arrays kept
+
+    # one step by hand: J(theta) = theta . (mu - mu_E) + 5/12 l + lambda/2 ||theta||^2, its gradient
+    # mu - mu_E + lambda theta; theta1 = P(theta0 - lr grad); the lower J of theta0 and theta1 is kept
+    def j(t: np.ndarray) -> float:
+        return t @ (mu - mu_e) + 5 / 12 * config.loop.margin_loss + own.mmp_lambda / 2 * t @ t
+
+    theta1 = project_to_ball(theta0 - lr * (mu - mu_e + own.mmp_lambda * theta0))
+    best = min((theta0, theta1), key=j)
+    one = MaxMarginStep(config.loop, LearnerConfig.preset("paper", mmp_steps=1, mmp_lambda=0.2,
+                                                          mmp_step_decay=0.5).step, demos)  # fmt: skip
+    theta_one, margin_one = one.update(theta0, rollouts, 2, greedy)
+    np.testing.assert_allclose(theta_one, best, rtol=1e-12, atol=1e-15)
+    assert margin_one == pytest.approx(-j(best), rel=1e-12)
+    assert not np.allclose(theta1, theta0) and not hasattr(step, "expert")  # no per-pair arrays kept
 
 
 @pytest.mark.parametrize("kind", ["paper", "extended", "bearing"])
@@ -534,6 +542,7 @@ def test_pair_features_are_the_taken_actions_rows_of_all_action_features(kind):
     rng = np.random.default_rng(11)
     phi = np.column_stack([rng.integers(1, 8, (20, 7)), rng.integers(1, 10, 20), rng.integers(0, 2, (20, 8))])
     actions = rng.integers(0, 6, 20)
-    np.testing.assert_array_equal(
-        pair_features(phi, actions, kind), all_action_features(phi, kind)[np.arange(20), actions]
-    )
+    expected = all_action_features(phi, kind)[np.arange(20), actions]
+    np.testing.assert_array_equal(pair_features(phi, actions, kind), expected)
+    # datasets hold actions as int8: slot 5 of the bearing map starts at 5 * 27 = 135 > 127
+    np.testing.assert_array_equal(pair_features(phi, actions.astype(np.int8), kind), expected)

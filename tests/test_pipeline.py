@@ -87,3 +87,28 @@ def test_train_then_eval_from_the_command_line(tmp_path, capsys, monkeypatch):
 def test_resume_refuses_changed_settings(tmp_path, capsys):
     assert main(["train", "--out", str(tmp_path), "--resume", "--config", "eta=3"]) == 2
     assert "--resume continues with the run's saved settings" in capsys.readouterr().err
+
+
+def test_a_warp_training_drives_as_many_worlds_as_an_iteration_has_trajectories(tmp_path, monkeypatch):
+    """--backend warp on train: --worlds defaults to the learner's trajectories per iteration (the
+    most its rollouts drive at once), and --worlds wins. The training itself is not run (no Warp
+    needed): the backend that train would be handed is captured."""
+
+    class Handed(Exception):
+        pass
+
+    handed = []
+
+    def capture(out, spec, demos, config, seed, resume, progress, backend):
+        handed.append((config.loop.trajectories_per_episode, backend))
+        raise Handed
+
+    monkeypatch.setattr(commands, "train", capture)
+    base = ["train", "--demos", str(tmp_path / "d.npz"), "--out", str(tmp_path / "run"), "--quiet",
+            "--backend", "warp", "--device", "cpu"]  # fmt: skip
+    for extra in ([], ["--config", "trajectories_per_episode=4"], ["--worlds", "3"]):
+        with pytest.raises(Handed):
+            main([*base, *extra])
+    assert [(n, b.name, b.worlds, b.device) for n, b in handed] == [
+        (10, "warp", 10, "cpu"), (4, "warp", 4, "cpu"), (10, "warp", 3, "cpu")
+    ]  # fmt: skip

@@ -189,20 +189,6 @@ def test_train_and_eval_on_the_warp_backend_from_the_command_line(tmp_path, caps
     assert "--worlds and --device go with --backend warp" in capsys.readouterr().err
 
 
-def test_a_training_on_warp_drives_as_many_worlds_as_its_iteration_has_trajectories_by_default():
-    import argparse
-
-    from nirl_mj.cli.commands import _backend
-
-    def args(**given) -> argparse.Namespace:
-        return argparse.Namespace(**{"backend": "warp", "worlds": None, "device": None, **given})
-
-    assert _backend(args(), worlds=10).worlds == 10  # NIRL's default: 10 trajectories an iteration
-    assert _backend(args()).worlds == Backend().worlds == 64  # eval: a batch of test arenas
-    assert _backend(args(worlds=3), worlds=10).worlds == 3  # --worlds wins
-    assert _backend(args(backend=None), {"name": "warp", "worlds": 5}, worlds=10).worlds == 5  # resumed
-
-
 def test_buffers_smaller_than_a_robot_at_rest_needs_are_refused():
     with pytest.raises(
         ValueError, match=r"contacts_per_world = 2: the robot at rest already needs 6; accepted"

@@ -77,7 +77,7 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
                 type=_positive_int,
                 default=None,
                 help="with --backend warp: worlds stepped at once (default: 64; train: the learner's "
-                "trajectories per iteration, 10 by default)",
+                "trajectories per iteration, 10 by default; a resumed training: the run's)",
             )
             parser.add_argument("--device", choices=DEVICES, default=None,
                                 help="with --backend warp: Warp's device (default: cuda)")  # fmt: skip
