@@ -612,7 +612,8 @@ worst = 43
 
     # Another experiment never writes into this directory; the same one resumes (nothing to do).
     assert main(["compare", "--task", str(spec), "--out", str(out), "--quiet"]) == 2
-    assert "holds another experiment (it differs in: methods, tests)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "holds another experiment (it differs in: methods (" in err and "), tests)" in err
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     assert main(["compare", "--task", str(spec), "--quick", "--out", str(tmp_path / "other"), "--quiet"]) == 2
@@ -716,8 +717,12 @@ def test_an_experiment_grows_by_methods_that_keep_its_test_arenas(tmp_path):
     longer = '[method.long]\nkind = "irl"\nconfig = { episodes = 3 }\n'
     with pytest.raises(ExperimentError, match="methods may be added"):
         protocol.open_output(out, experiment(["NIRL", "rule", "NIRL-last", "BC", "long"], longer))
-    with pytest.raises(ExperimentError, match="differs in: learners, methods"):
+    with pytest.raises(ExperimentError, match=r"differs in: learners \(NIRL-last removed\), methods "
+                       r"\(NIRL-last removed; BC removed\)\)"):  # fmt: skip
         protocol.open_output(out, experiment(["NIRL", "rule"]))
+    other = protocol.open_output(tmp_path / "other_out", experiment(["NIRL", "long"], longer))
+    with pytest.raises(ExperimentError, match=r"differs in: learners \(long: episodes\)\);"):
+        protocol.open_output(other, experiment(["NIRL", "long"], longer.replace("3", "4")))
 
 
 def test_a_default_pinned_or_dropped_in_config_resumes_the_same_output(tmp_path):

@@ -319,10 +319,12 @@ def test_a_methods_own_error_fails_its_cell_once_with_its_traceback(installed, t
 
 def test_a_methods_identity_holds_its_source_and_what_it_reads(installed, tmp_path):
     """Edited code under an unchanged version (an editable install) is another computation."""
-    from nirl_mj.experiments.definition import load_experiment
+    from nirl_mj.experiments import protocol
+    from nirl_mj.experiments.definition import ExperimentError, load_experiment
 
     path = spec(tmp_path, '["Still", "rule"]')
     before = load_experiment(path).identity()
+    out = protocol.open_output(tmp_path / "out", load_experiment(path))
     still = next(m for m in before["methods"] if m["name"] == "Still")
     assert still["reads"] == ["demonstrations", "features"] and len(still["source"]) == 16
     module = installed / "walker_method" / "__init__.py"
@@ -331,6 +333,11 @@ def test_a_methods_identity_holds_its_source_and_what_it_reads(installed, tmp_pa
     assert after != before and [m for m in after["methods"] if m["name"] == "rule"] == [
         m for m in before["methods"] if m["name"] == "rule"
     ]
+    # the refusal names the method and why: its code changed
+    with pytest.raises(
+        ExperimentError, match=r"differs in: methods \(Still: source \(its package's code changed\)\)"
+    ):
+        protocol.open_output(out, load_experiment(path))
 
 
 def test_an_installed_method_resumes_after_a_kill(installed, tmp_path):

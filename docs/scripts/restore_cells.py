@@ -43,8 +43,8 @@ def main() -> None:
     parser.add_argument("source", type=Path)
     parser.add_argument("--runs", type=run_range, help="A-B: only these runs (default: every run)")
     parser.add_argument("--extend", type=int, default=None, metavar="N",
-                        help="open OUT with runs 0..N-1, as `compare --runs N` does (rows run beyond the "
-                        "file's `runs`)")  # fmt: skip
+                        help="open OUT with runs 0..N-1, as `compare --runs N` does (fewer runs, to try a "
+                        "method; or rows run beyond the file's `runs`)")  # fmt: skip
     parser.add_argument("--rename", action="append", default=[], metavar="NEW=OLD",
                         help="take NEW's cells from SOURCE's method OLD (same learner settings)")  # fmt: skip
     parser.add_argument("--skip", default="", metavar="NAMES",

@@ -115,7 +115,32 @@ def recorded_differences(out: Path, experiment: Experiment) -> tuple[list[str], 
     # it goes back to its default too ("runs", in identities of old, was never part of one)
     differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
     grown = set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
-    return differ, bool(differ) and grown
+    return [_described(k, was, now) for k in differ], bool(differ) and grown
+
+
+def _described(key: str, was: dict, now: dict) -> str:
+    """``key`` of an identity that differs, with the methods (or learners) whose entries differ and
+    in which fields, for the refusal: ``"methods (KNN: source)"``."""
+    if key not in ("methods", "learners"):
+        return key
+
+    def by_name(identity: dict) -> dict:
+        entries = identity.get(key) or {}
+        if isinstance(entries, dict):
+            return entries
+        return {m.get("name", "?"): m for m in entries if isinstance(m, dict)}
+
+    before, after = by_name(was), by_name(now)
+    parts = []
+    for name in [*before, *(n for n in after if n not in before)]:
+        if name not in after or name not in before:
+            parts.append(f"{name} {'removed' if name not in after else 'added'}")
+        elif before[name] != after[name]:
+            a, b = before[name], after[name]
+            fields = sorted(f for f in {*a, *b} if a.get(f) != b.get(f)) if isinstance(a, dict) else []
+            source = " (its package's code changed)" if "source" in fields else ""
+            parts.append(f"{name}: {', '.join(fields) or 'order'}{source}")
+    return f"{key} ({'; '.join(parts)})" if parts else f"{key} (their order)"
 
 
 def output_state(out: str | Path, experiment: Experiment) -> str:
