@@ -301,6 +301,10 @@ def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path
     assert "--fps: expected a frame rate > 0, got 0" in capsys.readouterr().err
     # an experiment file given as a task names what it is; a refused command leaves no folder behind
     refused(capsys, ["task", "tasks/table1.toml"], "is an experiment (kind = 'compare'), not a task")
+    # an override is checked as every command checks it
+    refused(capsys, ["task", "navigate", "--set", "arena.floor_plan=maze"], "arena.floor_plan")
+    assert main(["task", "navigate", "--set", "arena.floor_plan=pockets"]) == 0
+    assert '"floor_plan": "pockets"' in capsys.readouterr().out
     assert "table1" not in refused(capsys, ["task", "nonexistent"], "unknown task")
     refused(capsys, ["compare", "--task", "table1", "--only", "Foo", "--out", str(tmp_path / "np" / "c")],
             "--only Foo")  # fmt: skip

@@ -61,6 +61,7 @@ def test_step_budget_is_three_straight_line_times_by_default():
         ({"arena": {"start": [150, 10]}}, "must lie inside the arena"),
         ({"arena": {"start_yaw": "north"}}, "accepted: target, random or degrees"),
         ({"arena": {"obstacles": [{"shape": "cylinder", "size": [1, 2]}]}}, "a cylinder takes [radius] > 0"),
+        ({"arena": {"obstacles": [{"shape": "cylinder"}]}}, "the default, a box's: give the cylinder's size"),
         ({"arena": {"obstacles": [{"shape": "cone"}]}}, "accepted: box, cylinder, wall"),
         ({"arena": {"obstacle_size": [3, 1]}}, "expected [min, max] with 0 < min <= max"),
         ({"sensing": {"range": 1.0, "danger7_clearance": 2.0}}, "must be < range"),

@@ -691,6 +691,6 @@ def cmd_leaderboard(args: argparse.Namespace) -> int:
 
 
 def cmd_task(args: argparse.Namespace) -> int:
-    spec = load_task(args.task)
+    spec = _task(args)
     print(json.dumps({**spec.to_dict(), "step_budget": spec.step_budget}, indent=2))
     return 0

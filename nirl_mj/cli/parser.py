@@ -220,7 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the run's)")  # fmt: skip
     p.add_argument("--steps", type=_positive_int, default=None,
                    help=f"decisions in all (default: {DEFAULT_STEPS}; a resume: the run's, "
-                        "or more)")  # fmt: skip
+                        "or more), rounded up to whole rollouts of 1024 for PPO, GAIL and AIRL")  # fmt: skip
     p.add_argument("--selection", choices=SELECTIONS, default=None,
                    help="how the checkpoint handed to tests is chosen (default: demo_balanced for gail and "
                         "airl, training_success for ppo and dqn; last: none; a resume: the run's)")
@@ -307,5 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
         sub, "task", c.cmd_task, "validate a task file and print the resolved spec as JSON", task=None
     )
     p.add_argument("task", help="task name under tasks/ or a .toml path")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override a task value, e.g. arena.floor_plan=pockets (repeatable)")  # fmt: skip
     return parser
 # fmt: on
