@@ -364,3 +364,14 @@ def test_an_environment_pickles_as_a_fresh_one_of_the_same_task():
     assert copy.unwrapped.spec == env.unwrapped.spec and copy.unwrapped.spec.id == "nirl_mj/Navigate-v0"
     again, _ = copy.reset(seed=3)
     assert np.array_equal(first, again) and copy.observation_space == env.observation_space
+
+
+def test_a_discrete_action_on_a_continuous_environment_names_the_expert_option():
+    env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.actions=continuous"])
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"a discrete action \(ExpertPolicy and reference_policy answer with "
+                                         r"shares when given env=this environment\)"):  # fmt: skip
+        env.step(0)
+    with pytest.raises(ValueError, match=r"expected two finite numbers in \[-1, 1\]$"):
+        env.step([0.5, 0.1, 0.2])
+    env.close()

@@ -165,7 +165,9 @@ class NavigationEnv(gymnasium.Env):
         to [-1, 1] first."""
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"action {action!r}: expected two finite numbers in [-1, 1]")
+            hint = ("; a discrete action (ExpertPolicy and reference_policy answer with shares when "
+                    "given env=this environment)") if a.shape == (1,) else ""  # fmt: skip
+            raise ValueError(f"action {action!r}: expected two finite numbers in [-1, 1]{hint}")
         return share_twist(a, self.action_scale)
 
     def render(self) -> np.ndarray | None:
