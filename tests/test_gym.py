@@ -296,7 +296,7 @@ def test_the_rule_and_ppo_drive_with_continuous_actions(tmp_path, monkeypatch):
 
 def test_stepping_after_the_end_says_to_reset_instead_of_a_type_error():
     env = gymnasium.make("nirl_mj/Navigate-v0", set=[*SMALL, "control.step_budget=1"]).unwrapped
-    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\): call reset\(\) first"):
         env.step(0)
     env.reset(seed=0)
     assert env.step(0)[3] is True  # truncated by the budget

@@ -146,7 +146,7 @@ class NavigationEnv(gymnasium.Env):
     def step(self, action):
         if self._ended is not False:
             raise RuntimeError(
-                "step() before reset()"
+                "step() before reset(): call reset() first"
                 if self._ended is None
                 else "step() after the episode ended (terminated or truncated): call reset() first"
             )
