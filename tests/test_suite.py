@@ -530,3 +530,6 @@ def test_a_point_with_fewer_finished_runs_than_the_experiment_says_how_many():
     table = markdown_table(summary, experiment)
     assert "| NIRL | 90.0 [80, 100] | - |" in table and "| NIRL-MAP | 50.0 [0, 100] (n = 2) | - |" in table
     assert "| NIRL-MAP | +40.0 [+10, +70] (n = 2) | - |" in _paired_table(summary, experiment, axis)
+    # one run paired: its difference, no interval (as compare's paired table shows it)
+    partial.update(runs=1, paired={"mean": -0.6, "ci": [None, None], "runs": 1})
+    assert "| NIRL-MAP | -60.0 (1 run) | - |" in _paired_table(summary, experiment, axis)

@@ -308,9 +308,11 @@ def _paired_table(summary: dict, experiment: Experiment, axis: Axis) -> str:
                      if (q["axis"], q["value"], q["method"]) == (axis.name, n, method.name))  # fmt: skip
             d = p.get("paired") or {}
             ci = d.get("ci") or [None, None]
-            cells.append(f"{100 * d['mean']:+.1f} [{100 * ci[0]:+.0f}, {100 * ci[1]:+.0f}]"
-                         f"{_fewer(d['runs'], experiment.runs)}"
-                         if d.get("runs", 0) > 1 and ci[0] is not None else "-")  # fmt: skip
+            if d.get("runs", 0) > 1 and ci[0] is not None:
+                cells.append(f"{100 * d['mean']:+.1f} [{100 * ci[0]:+.0f}, {100 * ci[1]:+.0f}]"
+                             f"{_fewer(d['runs'], experiment.runs)}")  # fmt: skip
+            else:  # one run paired has a difference but no interval (compare's table shows it too)
+                cells.append(f"{100 * d['mean']:+.1f} (1 run)" if d.get("runs") == 1 else "-")
         lines.append(f"| {method.name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
