@@ -15,6 +15,22 @@ import os
 # renders offscreen through Mesa on CPU-only machines. Must precede mujoco.
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+
+
+def _check_osmesa() -> None:
+    """dm_control loads the renderer MUJOCO_GL names when it is imported, by every command: without
+    the OSMesa library that import fails deep in PyOpenGL ('NoneType' has no 'glGetError'). Say what
+    is missing instead."""
+    import ctypes.util
+
+    if os.environ["MUJOCO_GL"] == "osmesa" and ctypes.util.find_library("OSMesa") is None:
+        raise ImportError(
+            "MUJOCO_GL=osmesa, but no OSMesa library is installed: install it (Debian: sudo apt-get "
+            "install libosmesa6), or unset MUJOCO_GL to render offscreen through EGL (the default)"
+        )
+
+
+_check_osmesa()
 # One BLAS thread per process: the learner's matrices are small, parallelism comes
 # from processes (demos, experiments), and a multi-threaded BLAS sharing cores with
 # them spins: measured 40x slower max-margin steps (12.6 s against 0.3 s per 20

@@ -196,6 +196,9 @@ def test_bad_requests_are_refused(tmp_path, capsys):
         check_frame("side", 160, 120)
     with pytest.raises(RenderError, match="16..1280 x 16..960"):
         check_frame("top", 2000, 120)
+    with pytest.raises(RenderError, match=r"snapshots must be >= 2 \(the first and the last frame"):
+        snapshot_strip("navigate", rule_policy, 1, tmp_path / "one.png", snapshots=1)
+    assert not (tmp_path / "one.png").exists()
 
 
 def test_unwritable_directory_is_refused(tmp_path, capsys, monkeypatch):
@@ -217,3 +220,17 @@ def test_without_an_opengl_backend_the_fix_is_named(tmp_path):
     assert done.returncode == 2, done.stderr
     assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in done.stderr and "MUJOCO_GL=osmesa" in done.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_osmesa_without_its_library_is_named_at_import_not_deep_in_pyopengl():
+    import ctypes.util
+
+    if ctypes.util.find_library("OSMesa") is not None:
+        pytest.skip("OSMesa is installed here: nothing to name")
+    env = {**os.environ, "MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
+    done = subprocess.run([sys.executable, "-c", "import nirl_mj"], env=env, capture_output=True, text=True)
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines()[-1] == (
+        "ImportError: MUJOCO_GL=osmesa, but no OSMesa library is installed: install it (Debian: sudo "
+        "apt-get install libosmesa6), or unset MUJOCO_GL to render offscreen through EGL (the default)"
+    )

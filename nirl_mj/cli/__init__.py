@@ -3,6 +3,7 @@ Nothing imports this package."""
 
 from __future__ import annotations
 
+import os
 import shlex
 import sys
 
@@ -31,6 +32,11 @@ def main(argv: list[str] | None = None) -> int:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return args.func(args)
+    except BrokenPipeError:
+        # the reader of our output left (``nirl-mj inspect D.npz | head``): stop quietly, as Unix
+        # tools do; stdout goes to /dev/null so that the interpreter's final flush does not complain
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except CLEAN_ERRORS as exc:
         print(f"nirl-mj {args.command}: error: {exc}", file=sys.stderr)
         return 2

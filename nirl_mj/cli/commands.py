@@ -89,15 +89,19 @@ def _summary(trajectories: list, summary: dict) -> dict | None:
     return pred
 
 
-def _check_output(path: str | Path, overwrite: bool, flag: str = "--out") -> Path:
+def _check_output(
+    path: str | Path, overwrite: bool, flag: str = "--out", creates: str | Path | None = None
+) -> Path:
     """Fails before any work if ``path`` (given as ``flag``) cannot be written or would overwrite
-    results."""
+    results; ``creates``, a directory the command itself makes (its ``--out``), may hold it."""
     path = Path(path)
     if path.is_dir():
         raise IsADirectoryError(f"{flag} {path} is a directory; give a file path")
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass --overwrite to replace it, or choose another {flag}")
     parent = path.parent if str(path.parent) else Path(".")
+    if creates is not None and parent.resolve() == Path(creates).resolve() and not parent.exists():
+        return path
     if not parent.is_dir():
         raise FileNotFoundError(f"cannot write {path}: directory {parent} does not exist")
     if not os.access(parent, os.W_OK):
@@ -105,10 +109,13 @@ def _check_output(path: str | Path, overwrite: bool, flag: str = "--out") -> Pat
     return path
 
 
-def _check_rerun(args: argparse.Namespace, *kept: str | Path) -> Path | None:
+def _check_rerun(
+    args: argparse.Namespace, *kept: str | Path, creates: str | Path | None = None
+) -> Path | None:
     """``--rerun``'s file checked before any work (None without it): a name ending in ``.rrd`` (what
     Rerun's viewer opens; never a dataset, a run's policy or its eval.json) that is none of ``kept``,
-    the files the command itself writes, and :func:`_check_output`'s checks."""
+    the files the command itself writes, and :func:`_check_output`'s checks (``creates``: the
+    directory the command makes, which may hold it)."""
     if not getattr(args, "rerun", None):
         return None
     path = Path(args.rerun)
@@ -119,7 +126,7 @@ def _check_rerun(args: argparse.Namespace, *kept: str | Path) -> Path | None:
         raise ValueError(
             f"--rerun {path} is also a file this command writes: give the recording another name"
         )
-    return _check_output(path, args.overwrite, "--rerun")
+    return _check_output(path, args.overwrite, "--rerun", creates)
 
 
 def _task(args: argparse.Namespace):
@@ -136,7 +143,7 @@ def _no_rerun_of_continuous(args: argparse.Namespace, spec) -> None:
 
 def cmd_run(args: argparse.Namespace) -> int:
     spec = _task(args)
-    _check_rerun(args, Path(args.out) / "run.rrd")
+    _check_rerun(args, Path(args.out) / "run.rrd", creates=args.out)
     iterations = args.episodes or LearnerConfig.preset(args.variant).loop.episodes
     bar = _bar(args, 3 * iterations, "iteration", desc="NIRL and 2 controls")
 
@@ -323,7 +330,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         spec, demos, seed = _task(args), args.demos, args.seed or 0
         backend = _backend(args, worlds=config.loop.trajectories_per_episode)
     done = RunDir(args.out).iterations_done() if args.resume else 0
-    recording = Recording(_check_rerun(args), overwrite=args.overwrite) if args.rerun else None
+    rerun = _check_rerun(args, creates=args.out)
+    # opened at the first iteration's end: its file may go into the run directory train makes
+    recordings: list[Recording] = []
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
 
         def progress(m) -> None:
@@ -331,16 +340,19 @@ def cmd_train(args: argparse.Namespace) -> int:
             bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
                             succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
                             else f"{m.validation_success:.2f}")  # fmt: skip
-            if recording:
-                recording.training([vars(m)])  # per iteration, from the metrics already computed
+            if rerun is not None:
+                if not recordings:
+                    recordings.append(Recording(rerun, overwrite=args.overwrite))
+                recordings[0].training([vars(m)])  # per iteration, from the metrics already computed
 
         try:
             record = train(args.out, spec, demos, config, seed, args.resume, progress, backend)
         except BaseException:
-            if recording:
+            for recording in recordings:
                 recording.abort()
             raise
-    if recording:
+    if rerun is not None:
+        recording = recordings[0] if recordings else Recording(rerun, overwrite=args.overwrite)
         print(f"wrote {finish_training(recording, args.out, demos)}")
     print(f"trained {record['iterations']} iterations ({config.loop.variant} variant); selected policy: "
           f"iteration {record['selected_iteration']}; run in {args.out}")  # fmt: skip

@@ -263,7 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="MP4 video of the episode")
     p.add_argument("--montage", metavar="FILE.png", help="strip of snapshots of the episode (Fig. 8)")
     p.add_argument("--snapshots", type=_positive_int, default=None,
-                   help=f"frames in --montage (default: {MONTAGE_SNAPSHOTS})")  # fmt: skip
+                   help=f"frames in --montage, at least 2 (default: {MONTAGE_SNAPSHOTS})")  # fmt: skip
     p.add_argument("--paths", metavar="FILE.png", help="whole paths in several test arenas (Fig. 5)")
     p.add_argument("--arenas", type=_positive_int, default=None,
                    help=f"arenas in --paths (default: {PATHS_ARENAS})")  # fmt: skip

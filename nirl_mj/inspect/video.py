@@ -508,8 +508,8 @@ def snapshot_strip(
     once to learn its length, once to render the chosen decisions. Returns the PNG's path.
     """
     check_frame(camera, width, height)
-    if snapshots < 1:
-        raise RenderError(f"snapshots must be >= 1, got {snapshots}")
+    if snapshots < 2:
+        raise RenderError(f"snapshots must be >= 2 (the first and the last frame at least), got {snapshots}")
     out = Path(out_png)
     refuse_existing(out, overwrite, _EXISTS)
     env = _ready_env(task)
