@@ -124,7 +124,7 @@ class MethodSpec:
 RL_STEPS, RL_ENVS = 50_000, 8
 """The budget (decisions) and the environments per rollout of GAIL and AIRL (the rows of
 tasks/table1.toml; the variants of issue 16 keep one environment and no selection); the RL references
-train twice as long, PPO-reward with a third of PPO's learning rate."""
+train twice as long, PPO-reward at PPO's learning rate decayed linearly to 0."""
 
 BUILTIN_METHODS = {
     "NIRL": MethodSpec("NIRL", "irl", "default", "nirl"),
