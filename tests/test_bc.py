@@ -3,6 +3,7 @@ early stopping on held-out demonstrations (learn/bc.py)."""
 
 import numpy as np
 import pytest
+from helpers import random_trajectory
 
 from nirl_mj.learn import network
 from nirl_mj.learn.bc import (
@@ -78,10 +79,9 @@ def test_balanced_cloning_learns_the_rare_action_and_stops_on_held_out_pairs():
 
 
 def test_behaviour_cloning_is_reproducible_from_its_seed():
-    from test_information_budget import _trajectory
 
     rng = np.random.default_rng(3)
-    demos = [_trajectory(rng, 15, "target") for _ in range(6)]
+    demos = [random_trajectory(rng, 15, "target") for _ in range(6)]
     probe = np.random.default_rng(4).integers(0, 8, size=(50, 16)).astype(float)
     probe[:, 7] = np.clip(probe[:, 7], 1, 9)
 
@@ -96,13 +96,12 @@ def test_behaviour_cloning_is_reproducible_from_its_seed():
 def test_bc_paper_is_the_bc_of_before(tmp_path):
     """BC-paper computes what the BC row computed until 2026-11-26 (written out here as it was:
     the 16-10-6 network on D/7 and V/9, every output's target, 30 unweighted minibatch epochs)."""
-    from test_information_budget import _trajectory
 
     from nirl_mj.data.features import N_ACTIONS
     from nirl_mj.learn.loop import demonstrated_pairs, greedy_policy
 
     rng = np.random.default_rng(5)
-    demos = [_trajectory(rng, 12, "target") for _ in range(4)]
+    demos = [random_trajectory(rng, 12, "target") for _ in range(4)]
     phi, actions = demonstrated_pairs(demos)
     inputs = NetworkInputs(True)
     x = np.repeat(inputs(phi), N_ACTIONS, axis=0)
