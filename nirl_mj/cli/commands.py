@@ -332,27 +332,29 @@ def cmd_train(args: argparse.Namespace) -> int:
     done = RunDir(args.out).iterations_done() if args.resume else 0
     rerun = _check_rerun(args, creates=args.out)
     # opened at the first iteration's end: its file may go into the run directory train makes
-    recordings: list[Recording] = []
+    recording: Recording | None = None
     with _bar(args, config.loop.episodes, "episode", initial=done) as bar:
 
         def progress(m) -> None:
+            nonlocal recording
             bar.update()
             bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
                             succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
                             else f"{m.validation_success:.2f}")  # fmt: skip
             if rerun is not None:
-                if not recordings:
-                    recordings.append(Recording(rerun, overwrite=args.overwrite))
-                recordings[0].training([vars(m)])  # per iteration, from the metrics already computed
+                if recording is None:
+                    recording = Recording(rerun, overwrite=args.overwrite)
+                recording.training([vars(m)])  # per iteration, from the metrics already computed
 
         try:
             record = train(args.out, spec, demos, config, seed, args.resume, progress, backend)
         except BaseException:
-            for recording in recordings:
+            if recording is not None:
                 recording.abort()
             raise
     if rerun is not None:
-        recording = recordings[0] if recordings else Recording(rerun, overwrite=args.overwrite)
+        if recording is None:  # a resumed run with no iteration left
+            recording = Recording(rerun, overwrite=args.overwrite)
         print(f"wrote {finish_training(recording, args.out, demos)}")
     print(f"trained {record['iterations']} iterations ({config.loop.variant} variant); selected policy: "
           f"iteration {record['selected_iteration']}; run in {args.out}")  # fmt: skip
