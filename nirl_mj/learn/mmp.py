@@ -340,6 +340,7 @@ class MaxMarginStep:
         demonstrated = pair_features(self.demo_phi, self.demo_actions, self.loop.reward_features)
         self.expert_next = (self.expert - demonstrated) / self.loop.gamma
         self.blocks = state_reward_features(self.demo_phi, self.loop.reward_features)  # (N, B)
+        self.loss = structured_loss(self.demo_actions, self.loop.margin_loss)  # (N, 6), fixed
 
     def learner_future(self, trajectories: Sequence) -> np.ndarray:
         """What follows each demonstrated pair on the learner's side, mu(next), (N, D), under the
@@ -387,9 +388,8 @@ class MaxMarginStep:
             self.policies.append(context.action_probabilities(self.demo_phi))
             policies = np.stack(self.policies)
         offset = self.loop.gamma * self.learner_future(trajectories) - self.expert
-        loss = structured_loss(self.demo_actions, self.loop.margin_loss)
         theta, j_min = minimise_mmp_blocks(
-            theta, self.blocks, offset, loss, lam, steps, lr, policies=policies
+            theta, self.blocks, offset, self.loss, lam, steps, lr, policies=policies
         )  # fmt: skip
         return theta, -j_min
 
