@@ -292,7 +292,8 @@ def _check_object(obj: Any, where: str) -> None:
         n = 1 if obj.shape == "cylinder" else 2
         if len(obj.size) != n or any(s <= 0 for s in obj.size):
             what = "[radius]" if n == 1 else "[half_x, half_y]"
-            default = " (the default, a box's: give the cylinder's size)" if obj.size == (1.0, 1.0) else ""
+            is_default = obj.size == ObstacleSpec().size
+            default = " (the default, a box's: give the cylinder's size)" if is_default else ""
             raise SpecError(f"{where}.size = {list(obj.size)}{default}: a {obj.shape} takes {what} > 0")
     elif isinstance(obj, ArenaSpec):
         _check_arena(obj, where)
