@@ -399,6 +399,75 @@ def test_missing_ray_names_the_extra(monkeypatch):
         run_cells([Cell("x", counted_cell, ("/nonexistent", "x", 0))], "dask")
 
 
+SHARED = """
+[method.last-wide]          # another learner: trains a run of its own
+kind = "irl"
+config = { selection = "last", hidden_units = 12 }
+
+[method.val]                # selects on validation episodes: a run of its own, lent to none
+kind = "irl"
+config = { selection = "validation" }
+
+[method.val-last]           # its last iterate: NIRL-last's settings, so it reads NIRL's run
+kind = "irl"
+config = { selection = "last" }
+"""
+
+
+def test_a_last_iterate_row_reads_the_training_run_it_shares_and_tests_the_same_policy(tmp_path, capsys):
+    """NIRL-last differs from NIRL in its selection alone: its job reads NIRL's training run (its last
+    iterate) instead of training the same again, starts after every other job, and gives the cells of
+    a run trained for it alone, bit for bit."""
+    head = 'kind = "compare"\nruns = 1\ntests = 2\nmethods = ["NIRL", "NIRL-last", "rule"]\n'
+    spec = write_spec(tmp_path, head)
+    spec.write_text(spec.read_text().replace("episodes = 1\n", "episodes = 3\n", 1))
+    alone = tmp_path / "alone.toml"
+    alone.write_text(spec.read_text().replace('["NIRL", "NIRL-last", "rule"]', '["NIRL-last"]'))
+    assert protocol.training_owners(load_experiment(spec)) == {"NIRL-last": load_experiment(spec).methods[0]}
+    for path, out in ((spec, "shared"), (alone, "own")):
+        assert main(["compare", "--task", str(path), "--executor", "serial", "--quiet", "--out",
+                     str(tmp_path / out)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert sorted(p.name for p in (tmp_path / "shared" / "runs").iterdir()) == ["NIRL"]
+
+    def cell(out: str) -> dict:
+        record = json.loads((tmp_path / out / "cells" / "NIRL-last-run000.json").read_text())
+        return {k: v for k, v in record["result"].items() if k != "seconds"}
+
+    assert cell("shared") == cell("own")
+    own = np.load(tmp_path / "own" / "runs" / "NIRL-last" / "0" / "policy.npz")
+    shared = np.load(tmp_path / "shared" / "runs" / "NIRL" / "0" / "policy.npz")
+    assert own.files == shared.files and all(np.array_equal(own[k], shared[k]) for k in own.files
+                                             if k.startswith("last"))  # fmt: skip
+    record = json.loads((tmp_path / "own" / "runs" / "NIRL-last" / "0" / "run.json").read_text())
+    assert record["selected_iteration"] == record["iterations"] - 1 == 2
+    # NIRL's rule picks another iterate here, whose cell differs: reading "selected" would be caught
+    nirl = json.loads((tmp_path / "shared" / "runs" / "NIRL" / "0" / "run.json").read_text())
+    assert nirl["selected_iteration"] != 2
+    nirl_cell = json.loads((tmp_path / "shared" / "cells" / "NIRL-run000.json").read_text())["result"]
+    assert nirl_cell["mean_path_length"] != cell("shared")["mean_path_length"]
+
+
+def test_only_a_last_iterate_row_with_the_same_settings_but_selection_shares_a_training_run(tmp_path):
+    """A run selected on validation episodes is lent to none (its validation arenas are its own), nor
+    one of other settings; a run selected by a rule is preferred wherever it is listed."""
+    names = '["NIRL-last", "val", "last-wide", "NIRL", "val-last"]'
+    head = f'kind = "compare"\nruns = 1\ntests = 2\nmethods = {names}\n'
+    e = load_experiment(write_spec(tmp_path, head + SHARED))
+    nirl = e.methods[3]
+    assert protocol.training_owners(e) == {"NIRL-last": nirl, "val-last": nirl}
+    out = protocol.open_output(tmp_path / "out", e)
+    demos = protocol.ensure_demos(out, e, 1, lambda _: None)
+    jobs = protocol.run_jobs(e, out, {0: demos})
+    assert [m for m, _ in jobs] == ["val", "last-wide", "NIRL", "NIRL-last", "val-last"]  # borrowers last
+    job = jobs["NIRL-last", 0]
+    assert (job.trained_by, job.policy, job.run_dir) == ("NIRL", "last", jobs["NIRL", 0].run_dir)
+    assert job.config == jobs["NIRL", 0].config  # the run's settings, with NIRL's selection
+    assert (jobs["last-wide", 0].trained_by, jobs["val", 0].policy) == ("", "selected")
+    without = dataclasses.replace(e, methods=tuple(m for m in e.methods if m.name != "NIRL"))
+    assert protocol.training_owners(without) == {"val-last": e.methods[0]}  # the first last-iterate row's
+
+
 def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     e = load_experiment(write_spec(tmp_path, SWEEP.replace("runs = 2", "runs = 1")))
     e = dataclasses.replace(e, config={**e.config, "episodes": 2})

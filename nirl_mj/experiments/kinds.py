@@ -46,7 +46,9 @@ def ensure_trained(job) -> dict:
     from nirl_mj.experiments.training import ensure_trained as ensure_run
     from nirl_mj.learn.config import LearnerConfig
 
-    return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed)
+    # a run shared with another method's job (protocol.training_owners) may be training in that job now
+    return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed,
+                      wait=bool(job.trained_by))  # fmt: skip
 
 
 def _irl(job, train: bool) -> Trained:
@@ -54,7 +56,7 @@ def _irl(job, train: bool) -> Trained:
     from nirl_mj.experiments.training import load_policy
 
     record = ensure_trained(job) if train else read_finished(job.run_dir)
-    policy, _ = load_policy(job.run_dir)
+    policy, _ = load_policy(job.run_dir, job.policy)
     return Trained(policy, frozenset(seen_seeds(record)))
 
 

@@ -298,9 +298,11 @@ def run_test_seeds(experiment: Experiment, run: int, demo_seeds: set[int]) -> li
 class RunJob:
     """Method ``method``'s run ``run``: what it trains on, where, and the arenas it is tested on.
 
-    ``config``: the resolved learner config, flat (``LearnerConfig.to_dict``; trainable methods);
-    ``run_dir`` an absolute
-    path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the run's test arenas."""
+    ``config``: the resolved learner config of the training run, flat (``LearnerConfig.to_dict``;
+    trainable methods); ``run_dir`` an absolute path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the
+    run's test arenas. ``trained_by`` names the method whose training run this job reads (its
+    ``run_dir`` and ``config``; :func:`training_owner`), ``policy`` which of its policies
+    ("selected" or "last")."""
 
     method: MethodSpec
     run: int
@@ -311,6 +313,8 @@ class RunJob:
     config: dict
     test_seeds: tuple[int, ...]
     expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
+    trained_by: str = ""  # another method's training run, read instead of training again ("": its own)
+    policy: str = "selected"
 
 
 def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[tuple[str, int], RunJob]:
@@ -318,6 +322,7 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
     run r's demonstrations (one path for every run unless they are drawn per run)."""
     from nirl_mj.data.dataset import load_dataset
 
+    owners = training_owners(experiment)
     jobs, seeds_of = {}, {}
     for run, path in demos.items():
         if path not in seeds_of:
@@ -325,11 +330,44 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
         seeds = tuple(run_test_seeds(experiment, run, seeds_of[path]))
         seed = run_seed(experiment, run)
         for method in experiment.methods:
-            config = method.learner_config(experiment.config).to_dict() if method.trains else {}
-            run_dir = out / "runs" / method.name / str(seed)
+            owner = owners.get(method.name, method)
+            config = owner.learner_config(experiment.config).to_dict() if method.trains else {}
+            run_dir = out / "runs" / owner.name / str(seed)
+            shared = owner is not method
             jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(path), str(run_dir),
-                                            config, seeds, experiment.expert)  # fmt: skip
-    return jobs
+                                            config, seeds, experiment.expert,
+                                            trained_by=owner.name if shared else "",
+                                            policy="last" if shared else "selected")  # fmt: skip
+    # a job that reads another's training run starts after every other job, so that on a few workers
+    # that run is finished when it starts (on many, it waits for the run's lock: the same result)
+    return dict(sorted(jobs.items(), key=lambda item: bool(item[1].trained_by)))
+
+
+SHARED_SELECTIONS = ("demo_accuracy", "demo_balanced", "last")
+"""The selection rules that drive no episode and read no arena: runs that differ in these alone train
+the same, bit for bit, and keep the same policies (the last among them)."""
+
+
+def training_owners(experiment: Experiment) -> dict[str, MethodSpec]:
+    """The methods whose training is another listed method's, by name. An IRL method that reports its
+    last iterate (``selection = "last"``) and whose resolved learner settings differ from another
+    listed method's in the selection alone, by a rule of :data:`SHARED_SELECTIONS`, reads that
+    method's training run: the first such method that selects by a rule, else the first before it
+    that reports its last iterate too (``NIRL-last`` reads ``NIRL``'s run: it would train the same)."""
+    settings = {m.name: m.learner_config(experiment.config).to_dict() for m in experiment.methods if m.trains}
+    rule = {name: config.pop("selection") for name, config in settings.items()}
+    owners: dict[str, MethodSpec] = {}
+    for i, method in enumerate(experiment.methods):
+        if rule.get(method.name) != "last":
+            continue
+        mine = settings[method.name]
+        same = [m for m in experiment.methods if m is not method and settings.get(m.name) == mine
+                and rule[m.name] in SHARED_SELECTIONS]  # fmt: skip
+        by_rule = [m for m in same if rule[m.name] != "last"]
+        earlier = [m for m in same if m in experiment.methods[:i] and m.name not in owners]
+        if by_rule or earlier:
+            owners[method.name] = (by_rule or earlier)[0]
+    return owners
 
 
 def policy_of(job: RunJob, train: bool = True) -> Callable:

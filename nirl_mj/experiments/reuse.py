@@ -199,9 +199,10 @@ def reuse_cells(
             continue
         source_name = found[0]
         old_run, new_run = old / "runs" / source_name / str(job.seed), Path(job.run_dir)
-        if not tests_match(job) or new_run.exists():
+        # a job reading another method's training run (protocol.training_owners) owns no run to copy
+        if not tests_match(job) or (new_run.exists() and not job.trained_by):
             continue
-        if old_run.is_dir():
+        if old_run.is_dir() and not job.trained_by:
             copy_run(old_run, new_run)
         record = json.loads(source.path(cell_id(source_name, run)).read_text())
         record = {k: v for k, v in record.items() if k != "reused_as"}  # OLD's own provenance is OLD's
@@ -277,7 +278,7 @@ def restore_published(
         if wanted not in sources[name]:
             other.add(f"{name} (from {wanted})" if wanted != name else name)
             continue
-        if Path(job.run_dir).exists():
+        if Path(job.run_dir).exists() and not job.trained_by:
             continue
         if not tests_match(job):
             raise ExperimentError(f"{source}: run {run}'s test arenas differ from {out}'s; nothing restored")

@@ -44,12 +44,14 @@ from nirl_mj.sim.spec import TaskSpec
 def train_cell(job: RunJob) -> dict:
     """Trains (or resumes, or finds finished) one run; returns its iterations and selected iteration."""
     record = ensure_trained(job)
+    # a job reading another method's run reports that run's last iterate (protocol.training_owners)
+    selected = record["iterations"] - 1 if job.policy == "last" else record["selected_iteration"]
     return {
         "method": job.method.name,
         "run": job.run,
         "seed": job.seed,
         "iterations": record["iterations"],
-        "selected_iteration": record["selected_iteration"],
+        "selected_iteration": selected,
     }
 
 

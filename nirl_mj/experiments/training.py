@@ -271,13 +271,15 @@ def ensure_trained(
     demos_path: str | os.PathLike,
     config: LearnerConfig,
     seed: int = 0,
+    wait: bool = False,
 ) -> dict:
     """Trains the run, resumes it from its checkpoint, or returns a finished one's record.
 
     Finished means the final record is written (:func:`finish` writes it last). A directory
     killed before its first checkpoint holds only the files :func:`train` starts with and is
-    started afresh; one holding anything else is refused. Everything under the run's lock."""
-    with DirectoryLock(run_dir, "training"):
+    started afresh; one holding anything else is refused. Everything under the run's lock, which
+    another process holding it refuses, or with ``wait`` is waited for."""
+    with DirectoryLock(run_dir, "training", wait=wait):
         return _ensure_trained(RunDir(run_dir), task, demos_path, config, seed)
 
 
