@@ -468,6 +468,26 @@ def test_only_a_last_iterate_row_with_the_same_settings_but_selection_shares_a_t
     assert protocol.training_owners(without) == {"val-last": e.methods[0]}  # the first last-iterate row's
 
 
+def test_experiment_json_is_strict_and_one_with_the_old_epsilon_spelling_still_resumes(tmp_path):
+    """The learners' "never stop" is null (strict JSON); an OUT written before holds -Infinity,
+    which reads as the same setting, so it resumes instead of being refused."""
+
+    def strict(constant: str) -> None:
+        raise ValueError(f"not strict JSON: {constant}")
+
+    e = load_experiment(
+        write_spec(tmp_path, 'kind = "compare"\nruns = 1\ntests = 2\nmethods = ["NIRL", "rule"]\n')
+    )
+    out = protocol.open_output(tmp_path / "out", e)
+    text = (out / "experiment.json").read_text()
+    assert json.loads(text, parse_constant=strict)["learners"]["NIRL"]["epsilon"] is None
+    (out / "experiment.json").write_text(text.replace('"epsilon": null', '"epsilon": -Infinity'))
+    assert protocol.open_output(tmp_path / "out", e) == out
+    assert protocol.output_state(out, e).startswith("holds this experiment")
+    stops = dataclasses.replace(e, config={**e.config, "epsilon": 0.0})  # another setting: refused
+    assert "learners (NIRL: epsilon)" in protocol.output_state(out, stops)
+
+
 def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):
     e = load_experiment(write_spec(tmp_path, SWEEP.replace("runs = 2", "runs = 1")))
     e = dataclasses.replace(e, config={**e.config, "episodes": 2})

@@ -1,5 +1,7 @@
 """NIRL training runs: reproducible, resumable, and careful with what is on disk."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -47,13 +49,24 @@ def test_same_seed_gives_identical_weights(tmp_path, demos, variant):
 
 def test_algorithm_1_stops_once_the_margin_is_at_most_epsilon(tmp_path, demos):
     """Lines 6-8: the loop ends after the iteration whose margin t <= epsilon (the paper preset's
-    epsilon is 0); the default's -inf never stops it."""
-    for epsilon, iterations in ((float("inf"), 1), (float("-inf"), 3)):
+    epsilon is 0); the default (None) never stops it, nor -inf, which records written before
+    2026-11-30 hold: it reads as None, so that run.json is strict JSON."""
+
+    def strict(constant: str) -> None:
+        raise ValueError(f"not strict JSON: {constant}")
+
+    for epsilon, iterations in ((float("inf"), 1), (None, 3), (float("-inf"), 3)):
         run = tmp_path / str(epsilon)
         train(run, TINY, demos, tiny_config(epsilon=epsilon), seed=1)
         assert len(RunDir(run).read_metrics()) == iterations
         assert bool(RunDir(run).read_checkpoint()["stopped"]) == (iterations == 1)
+        if iterations == 3:
+            record = json.loads((run / "run.json").read_text(), parse_constant=strict)
+            assert record["config"]["epsilon"] is None
     assert LearnerConfig.preset("paper").loop.epsilon == 0.0
+    assert LearnerConfig().loop.epsilon is None
+    with pytest.raises(ValueError, match="epsilon = nan: expected a number"):
+        tiny_config(epsilon=float("nan"))
 
 
 @pytest.mark.parametrize("matching", ["occupancy", "policy"])

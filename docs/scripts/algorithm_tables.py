@@ -253,7 +253,7 @@ DEPARTURES: tuple[Departure, ...] = (
         ),
     ),
     Departure(
-        "**Budget** `episodes = 60`, `epsilon = -inf` (the margin t is reported, never a stop); paper "
+        "**Budget** `episodes = 60`, no `epsilon` (the margin t is reported, never a stop); paper "
         "preset: 120 iterations, stop when t <= 0",
         "a run stays within minutes on one core; `iter-120` restores the 120 iterations only: the stop is "
         "not ablated (the default's policies reading keeps the first policy among the alternatives, "

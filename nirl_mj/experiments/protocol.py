@@ -111,6 +111,10 @@ def recorded_differences(out: Path, experiment: Experiment) -> tuple[list[str], 
         raise ExperimentError(f"{marker} is corrupted (not a JSON object); choose another --out")
     identity = experiment.identity()
     was, now = unspelled_identity(saved), unspelled_identity(identity)
+    if isinstance(saved.get("learners"), dict):
+        # as they compute, read as their runs are: a setting's older spelling (epsilon -inf, now
+        # None) or a setting added since, at the value it had then, changes no cell
+        was["learners"] = {**saved["learners"], **resolved_learners(saved, skip_retired=True)}
     # every key either holds: one written only when set (test_domain, demos_per_run) differs when
     # it goes back to its default too ("runs", in identities of old, was never part of one)
     differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))

@@ -18,7 +18,7 @@ pi^(i), so each update does step 5 for the policy the previous update's reward p
 steps 2-3. Step 4 is the loop's ONE iteration of SARSA targets and backpropagation (eq. 14-15)
 on r = theta^T f with the network warm-started, not an RL solve to optimality: the policy whose
 mu is measured next has only partly adapted to w^(i). The loop's stopping rule (step 3) is
-``LoopConfig.epsilon`` (default -inf: run the episode budget), and the policy reported is chosen
+``LoopConfig.epsilon`` (default None: run the episode budget), and the policy reported is chosen
 by the loop's ``LoopConfig.selection`` (by default balanced accuracy on the demonstrations), as
 for every method, not the paper's "best t or a mixture".
 

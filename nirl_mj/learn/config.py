@@ -58,8 +58,9 @@ class LoopConfig:
     margin_loss: float = (
         0.1  # l(s, a) for a != a_E in the structured losses of max margin and SCIRL (paper: 1)
     )
-    # stop when the reward step's margin t <= epsilon (the paper gives no value)
-    epsilon: float = float("-inf")
+    # stop when the reward step's margin t <= epsilon (the paper gives no value); None: never (runs
+    # written before 2026-11-30 hold -inf, read as None: their JSON was not strict)
+    epsilon: float | None = None
     reward_scaling: bool = True  # rewards mapped into [0, 1 - gamma]
     # the value of an episode's end in the targets (learn/terminal.py): "learned" (the absorbing
     # state's reward from the demonstrations' and the learner's ends) or "outcome" (an arrival
@@ -103,6 +104,11 @@ class LoopConfig:
         return self.terminal_value == "outcome" and self.terminal_arrival_value != 0
 
     def __post_init__(self) -> None:
+        if self.epsilon is not None:
+            if math.isnan(self.epsilon):
+                raise ValueError("epsilon = nan: expected a number (the margin at which the loop stops)")
+            if self.epsilon == -math.inf:  # never reached: the same as no stop, and strict JSON
+                object.__setattr__(self, "epsilon", None)
         _choice("method", self.method, METHODS)
         _choice("reward_source", self.reward_source, REWARD_SOURCES)
         _choice("reward_features", self.reward_features, ("paper", "extended", "bearing"))
@@ -396,7 +402,7 @@ def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, 
     for key, value in changes.items():
         if key not in defaults:
             raise ValueError(f"{where}: unknown learner setting {key!r}; accepted: {', '.join(defaults)}")
-        kind = type(defaults[key])
+        kind = float if defaults[key] is None else type(defaults[key])  # None: an optional number
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         if type(value) is not kind:

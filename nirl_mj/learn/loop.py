@@ -266,7 +266,7 @@ class IrlLoop:
             self.theta, margin = self.reward_step.update(
                 self.theta, trajectories, self.iteration, greedy, context
             )
-            if margin <= c.epsilon:  # lines 6-8
+            if c.epsilon is not None and margin <= c.epsilon:  # lines 6-8
                 self.stopped = True
 
         arrival = c.terminal_arrival_value if c.reads_outcome else 0.0
