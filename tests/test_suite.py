@@ -367,6 +367,14 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     (e / "rows.csv").unlink()  # its cells' full precision against a's CSV: the same
     assert main(["leaderboard", str(a), str(e), "--out", str(tmp_path / "w")]) == 0
     assert "disagree" not in (tmp_path / "w" / "leaderboard.md").read_text()
+    assert "k of n" not in board  # every method holds every run
+    # a directory whose experiment has not finished: the method with fewer runs is marked and said
+    partial = shutil.copytree(a, tmp_path / "partial")
+    kept = [line for line in (partial / "rows.csv").read_text().splitlines() if ",BC,1," not in line]
+    (partial / "rows.csv").write_text("\n".join(kept) + "\n")
+    assert main(["leaderboard", str(partial), "--out", str(tmp_path / "v")]) == 0
+    board = (tmp_path / "v" / "leaderboard.md").read_text()
+    assert "| BC | 1 of 2 |" in board and "| rule | 2 |" in board and "**Runs `k of n`**" in board
 
 
 def test_the_leaderboard_reads_what_each_directory_recorded_and_nothing_from_a_damaged_file(tmp_path):

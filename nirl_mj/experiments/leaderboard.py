@@ -166,7 +166,7 @@ def points(rows: list[dict]) -> list[dict]:
 
 
 def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[str] | None]) -> str:
-    parts = []
+    parts, partial = [], False
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
         lines = [
@@ -174,15 +174,29 @@ def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[
             "|---|---|---|---|---|---|---|---|",
         ]
         here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)]
+        most = max(p["runs"] for p in here)
+        partial |= any(p["runs"] < most for p in here)
         for rank, p in enumerate(here, start=1):
             ci = p.get("ci") or [None, None]
             band = f" [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]" if ci[0] is not None else ""
             sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
             success = f"{100 * p['avg']:.1f}{band}"
-            lines.append(f"| {rank} | {p['method']} | {p['runs']} | {success} | {p['spl']:.2f} | "
+            runs = f"{p['runs']} of {most}" if p["runs"] < most else str(p["runs"])
+            lines.append(f"| {rank} | {p['method']} | {runs} | {success} | {p['spl']:.2f} | "
                          f"{sct} | {reads_text(reads[p['method']])} | `{source[p['method']]}` |")  # fmt: skip
         parts.append(title + "\n".join(lines))
+    if partial:
+        parts.append(PARTIAL)
     return "\n\n".join(parts)
+
+
+PARTIAL = (
+    "**Runs `k of n`**: a method that holds fewer finished runs than the most any method holds here "
+    "(an experiment not finished, or a trial on fewer runs) is averaged over its own runs, on their "
+    "test arenas only: its average compares with the others' only loosely, and its interval is "
+    "wider. Finish its runs (rerun its experiment) to rank it on the same arenas."
+)
+"""Said under a leaderboard in which some method holds fewer runs than another."""
 
 
 def bar_plot(path: Path, summary: list[dict]) -> Path:
