@@ -190,6 +190,16 @@ def test_bad_requests_are_refused(tmp_path, capsys):
     for message, extra in cases.items():
         assert main([*base, *extra]) == 2, message
         assert message in capsys.readouterr().err
+    # refused up front: the one error line, no header line naming the arena before it
+    early = {
+        "snapshots must be >= 2 (the first and the last frame at least), got 1": [
+            "--montage", str(tmp_path / "s.png"), "--snapshots", "1"],
+        "fps 1000: must be > 0 and at most": ["--out", str(tmp_path / "a.mp4"), "--fps", "1000"],
+    }  # fmt: skip
+    for message, extra in early.items():
+        assert main([*base, *extra]) == 2, message
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1 and "arena seed" not in err, err
     assert existing.read_bytes() == b"keep me"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old.mp4", "tiny.toml"]
     with pytest.raises(RenderError, match="unknown camera"):

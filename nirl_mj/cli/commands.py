@@ -527,6 +527,8 @@ def cmd_render(args: argparse.Namespace) -> int:
             raise video.RenderError(f"{flag} sets --{owner}'s figure; without --{owner} it has no use: "
                                     "leave it out")  # fmt: skip
         setattr(args, flag[2:], default if value is None else value)
+    if args.montage:  # refused before anything is printed or computed, not after the header line
+        video.check_snapshots(args.snapshots)
     outputs = [Path(p) for p in (args.out, args.montage, args.paths) if p]
     if not outputs:
         raise video.RenderError(
@@ -563,6 +565,8 @@ def _render(args: argparse.Namespace) -> int:
     seeds = subject.test_seeds(args.seed, args.episode + max(1, args.arenas if args.paths else 1))[
         args.episode :
     ]
+    if args.out:  # the frame rate's bound is the task's command period: checked before the header line
+        video.check_fps(args.fps, spec.control.command_period)
     what = f"{args.run} ({args.which} policy)" if args.run else f"policy {args.policy}"
     env, frame = make_env(spec), (args.camera, args.width, args.height)
     print(f"{what} on {spec.name}, arena seed {seeds[0]}, camera {args.camera}", file=sys.stderr)

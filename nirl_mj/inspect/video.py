@@ -360,11 +360,7 @@ def record_video(
     out = Path(out)
     check_frame(camera, width, height)
     env = _ready_env(task)
-    period = env.task.spec.control.command_period
-    if not 0 < fps <= 1.0 / period + 1e-9:
-        raise RenderError(
-            f"fps {fps:g}: must be > 0 and at most {1.0 / period:g} (one frame per command period)"
-        )
+    check_fps(fps, env.task.spec.control.command_period)
     # ffmpeg picks the container by the file name: the temporary file ends in .mp4 too.
     with AtomicFile(out, ".mp4", overwrite, _EXISTS) as target:
         view = View(env, camera, width, height)
@@ -477,6 +473,22 @@ MONTAGE_SNAPSHOTS, PATHS_ARENAS = 5, 4
 """The defaults of ``render --montage``'s frames and ``render --paths``' arenas."""
 
 
+def check_snapshots(snapshots: int) -> None:
+    """Raises :class:`RenderError` for a strip of fewer than two frames (``snapshot_strip``'s
+    ``snapshots``, ``render --snapshots``)."""
+    if snapshots < 2:
+        raise RenderError(f"snapshots must be >= 2 (the first and the last frame at least), got {snapshots}")
+
+
+def check_fps(fps: float, period: float) -> None:
+    """Raises :class:`RenderError` for a video frame rate that is not > 0 and at most one frame per
+    command ``period`` (seconds)."""
+    if not 0 < fps <= 1.0 / period + 1e-9:
+        raise RenderError(
+            f"fps {fps:g}: must be > 0 and at most {1.0 / period:g} (one frame per command period)"
+        )
+
+
 def snapshot_strip(
     task: str | TaskSpec | Any,
     policy: Policy,
@@ -508,8 +520,7 @@ def snapshot_strip(
     once to learn its length, once to render the chosen decisions. Returns the PNG's path.
     """
     check_frame(camera, width, height)
-    if snapshots < 2:
-        raise RenderError(f"snapshots must be >= 2 (the first and the last frame at least), got {snapshots}")
+    check_snapshots(snapshots)
     out = Path(out_png)
     refuse_existing(out, overwrite, _EXISTS)
     env = _ready_env(task)
