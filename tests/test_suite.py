@@ -119,7 +119,7 @@ def test_check_runs_and_writes_nothing_and_says_what_would_run(tmp_path, capsys)
         and "runs 2 (seeds 7..8)" in text
         and "axis speed: 1.0, 2.0" in text
     )
-    assert "rule (rule, a reference): reads features, hand_written" in text
+    assert "rule (rule, a reference): reads features, hand_written" in text and "\nset: none\n" in text
     assert f"output: {out} (does not exist yet)" in text and not out.exists()
     # an output of this experiment, of another one, of something else
     (out / "cells").mkdir(parents=True)
@@ -149,6 +149,20 @@ def test_check_runs_and_writes_nothing_and_says_what_would_run(tmp_path, capsys)
     path.write_text(path.read_text() + "[quick.demos]\nepisodez = 3\n")
     assert main(["suite", "--task", str(path), "--out", str(out), "--check"]) == 2
     assert "quick.demos: unknown key(s) episodez" in capsys.readouterr().err
+
+
+def test_check_names_the_set_overrides_of_the_file_and_of_its_quick_table(tmp_path, capsys):
+    path = tmp_path / "c.toml"
+    path.write_text('kind = "compare"\nmethods = ["rule"]\n[set.arena]\nstatic_obstacles = 20\n'
+                    '[set.control]\nspeed = 2.0\n[quick]\ntests = 5\n[quick.set.arena]\n'
+                    'static_obstacles = 3\n[quick.set.robot]\ndrive = "planar"\n')  # fmt: skip
+    out = str(tmp_path / "out")
+    assert main(["compare", "--task", str(path), "--out", out, "--check"]) == 0
+    assert "\nset: arena.static_obstacles=20, control.speed=2.0\n" in capsys.readouterr().out
+    assert main(["compare", "--task", str(path), "--out", out, "--check", "--quick"]) == 0
+    text = capsys.readouterr().out
+    assert '\nset: arena.static_obstacles=3, control.speed=2.0, robot.drive="planar"\n' in text
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_suite_error_on_the_command_line_is_one_error_line(tmp_path, capsys):

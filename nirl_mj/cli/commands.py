@@ -682,7 +682,7 @@ def _plan_text(experiment, out: Path) -> str:
              + (f": {e.description}" if e.description else ""),
              f"runs {e.runs} (seeds {e.seed}..{e.seed + e.runs - 1}), {e.tests} test arenas each from the "
              f"{e.test_domain!r} domain; demonstrations: {demos}",
-             f"task {e.task.name}, tests on {e.test_task.name}"]  # fmt: skip
+             f"task {e.task.name}, tests on {e.test_task.name}", _set_line(e)]  # fmt: skip
     for a in e.axes:
         own = a.test_task is not None and a.test_task != e.test_task
         lines.append(f"axis {a.name}{f' (tests on {a.test_task.name})' if own else ''}: "
@@ -696,6 +696,22 @@ def _plan_text(experiment, out: Path) -> str:
                      f"{', '.join(reads) or 'nothing'}")  # fmt: skip
     lines.append(f"output: {out} ({output_state(out, e)})")
     return "\n".join(lines)
+
+
+def _set_line(experiment) -> str:
+    """``--check``: the experiment file's ``[set]`` (with --quick, its ``[quick]`` table's merged in), the
+    values it changes in the task, the test task and a suite's axes' tasks, as ``SECTION.KEY=VALUE``
+    (VALUE as JSON), sorted. The Experiment holds the changed tasks only: the table is read again from
+    its file (already checked by load_experiment)."""
+    from nirl_mj.experiments.definition import _merge
+
+    data = specs.read_toml(Path(experiment.source), "experiment file", ExperimentError)
+    if experiment.quick:
+        data = _merge(data, data.get("quick", {}))
+    table = data.get("set", {})
+    values = [f"{section}.{key}={json.dumps(value)}"
+              for section in sorted(table) for key, value in sorted(table[section].items())]  # fmt: skip
+    return "set: " + (", ".join(values) or "none")
 
 
 def cmd_leaderboard(args: argparse.Namespace) -> int:
