@@ -94,6 +94,26 @@ def test_algorithm_md_describes_the_default_in_at_most_400_lines():
     assert len((ROOT / "docs" / "ALGORITHM.md").read_text(encoding="utf-8").splitlines()) <= 400
 
 
+PAPER_TITLE = "Neural Inverse Reinforcement Learning with a Nonlinear Policy Representation"
+"""The title of the stored paper, ../shared/paper/nirl-paper.md; it names no authors and no venue."""
+
+
+def test_the_paper_is_cited_by_its_stored_title_alone():
+    """README.md, the docs, the stored reports and the code cite the NIRL paper by the title of the stored
+    copy, with no authors or venue that copy cannot confirm."""
+    from nirl_mj.inspect.figures import NIRL_PAPER
+
+    assert NIRL_PAPER == f"*{PAPER_TITLE}*"
+    for page in ("README.md", "docs/ALGORITHM.md"):
+        assert f"*{PAPER_TITLE}*" in " ".join((ROOT / page).read_text(encoding="utf-8").split()), page
+    places = ("README.md", "docs", "nirl_mj", "tasks", "bench", "examples", "notebooks")
+    files = [f for place in places for f in sorted((ROOT / place).rglob("*")) if (ROOT / place).is_dir()]
+    files = [ROOT / "README.md", *(f for f in files if f.suffix in (".md", ".py", ".toml", ".ipynb", ".sh"))]
+    for file in files:
+        found = re.findall(r"\bXia\b|El Kamel|Autonomous\s+Systems", file.read_text(encoding="utf-8"))
+        assert not found, (str(file.relative_to(ROOT)), found)
+
+
 def slug(heading: str) -> str:
     """GitHub's anchor of a heading."""
     text = re.sub(r"[^\w\- ]", "", heading.strip().lower())

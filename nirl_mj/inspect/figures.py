@@ -27,8 +27,9 @@ from nirl_mj.data.trajectory import Trajectory, path_length
 from nirl_mj.inspect.canvas import subplots
 from nirl_mj.inspect.recording import layout_of
 
-NIRL_PAPER = "Xia & El Kamel, *Neural Inverse Reinforcement Learning*, Robotics and Autonomous Systems, 2016"
-"""The paper this project makes real ("the NIRL paper" in reports), as README.md cites it."""
+NIRL_PAPER = "*Neural Inverse Reinforcement Learning with a Nonlinear Policy Representation*"
+"""The paper this project makes real ("the NIRL paper" in reports), as README.md cites it: by the title of
+the stored copy (``../shared/paper/nirl-paper.md``), which names no authors or venue."""
 
 SPL_TEXT = (
     "*SPL*, success weighted by path length (Anderson et al. 2018) = (1/N) sum_i S_i L_i / max(L_i, P_i) "
