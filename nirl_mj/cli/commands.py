@@ -703,11 +703,11 @@ def _set_line(experiment) -> str:
     values it changes in the task, the test task and a suite's axes' tasks, as ``SECTION.KEY=VALUE``
     (VALUE as JSON), sorted. The Experiment holds the changed tasks only: the table is read again from
     its file (already checked by load_experiment)."""
-    from nirl_mj.experiments.definition import _merge
+    from nirl_mj.experiments.definition import merged_tables
 
     data = specs.read_toml(Path(experiment.source), "experiment file", ExperimentError)
     if experiment.quick:
-        data = _merge(data, data.get("quick", {}))
+        data = merged_tables(data, data.get("quick", {}))
     table = data.get("set", {})
     values = [f"{section}.{key}={json.dumps(value)}"
               for section in sorted(table) for key, value in sorted(table[section].items())]  # fmt: skip
