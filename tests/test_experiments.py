@@ -448,6 +448,25 @@ def test_a_last_iterate_row_reads_the_training_run_it_shares_and_tests_the_same_
     assert nirl_cell["mean_path_length"] != cell("shared")["mean_path_length"]
 
 
+def test_both_jobs_of_a_shared_training_run_wait_for_its_lock_instead_of_failing(tmp_path, capsys):
+    """NIRL's and NIRL-last's cells may start together (more workers than jobs left): whichever
+    finds the run's lock held waits for it, the owner as well as the borrower."""
+    import threading
+
+    from nirl_mj.data.lock import DirectoryLock
+
+    e = load_experiment(
+        write_spec(tmp_path, 'kind = "compare"\nruns = 1\ntests = 2\nmethods = ["NIRL", "NIRL-last"]\n')
+    )
+    out = protocol.open_output(tmp_path / "out", e)
+    jobs = protocol.run_jobs(e, out, {0: protocol.ensure_demos(out, e, 1, lambda _: None)})
+    for name in ("NIRL", "NIRL-last"):
+        lock = DirectoryLock(jobs[name, 0].run_dir, "training").acquire()  # the other cell, training
+        threading.Timer(1.0, lock.release).start()
+        assert "train_seeds" in kinds.ensure_trained(jobs[name, 0])
+        assert "waiting for process" in capsys.readouterr().err
+
+
 def test_only_a_last_iterate_row_with_the_same_settings_but_selection_shares_a_training_run(tmp_path):
     """A run selected on validation episodes is lent to none (its validation arenas are its own), nor
     one of other settings; a run selected by a rule is preferred wherever it is listed."""

@@ -46,9 +46,10 @@ def ensure_trained(job) -> dict:
     from nirl_mj.experiments.training import ensure_trained as ensure_run
     from nirl_mj.learn.config import LearnerConfig
 
-    # a run shared with another method's job (protocol.training_owners) may be training in that job now
+    # waits for the run's lock: a run shared by two methods' jobs (protocol.training_owners) may be
+    # training in the other's cell now, whichever started first (OUT's own lock keeps other commands out)
     return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed,
-                      wait=bool(job.trained_by))  # fmt: skip
+                      wait=True)  # fmt: skip
 
 
 def _irl(job, train: bool) -> Trained:

@@ -305,7 +305,7 @@ class RunJob:
     ``config``: the resolved learner config of the training run, flat (``LearnerConfig.to_dict``;
     trainable methods); ``run_dir`` an absolute path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the
     run's test arenas. ``trained_by`` names the method whose training run this job reads (its
-    ``run_dir`` and ``config``; :func:`training_owner`), ``policy`` which of its policies
+    ``run_dir`` and ``config``; :func:`training_owners`), ``policy`` which of its policies
     ("selected" or "last")."""
 
     method: MethodSpec

@@ -3,8 +3,9 @@
 An output directory holds one experiment identity (``nirl_mj.experiments.protocol``), so a change
 of one method's defaults makes every cell of a comparison start again, although the cells of the
 other methods would compute the same numbers. ``nirl-mj compare --reuse OLD`` copies such cells
-from OLD (the cell's record and its training run directory) before anything runs. A cell of
-method M and run r is taken only when all of these hold:
+from OLD (the cell's record and its training run directory; a cell that reads another method's
+training run, ``protocol.training_owners``, has none of its own: its record alone) before anything
+runs. A cell of method M and run r is taken only when all of these hold:
 
 - OLD's identity equals the new one in every key of :data:`SHARED_KEYS` (task, test task, seed,
   tests, expert, demonstrations, sweep axes, test domain): not the method list, the learners'
