@@ -505,6 +505,10 @@ def test_experiment_json_is_strict_and_one_with_the_old_epsilon_spelling_still_r
     assert protocol.output_state(out, e).startswith("holds this experiment")
     stops = dataclasses.replace(e, config={**e.config, "epsilon": 0.0})  # another setting: refused
     assert "learners (NIRL: epsilon)" in protocol.output_state(out, stops)
+    saved = json.loads((out / "experiment.json").read_text())  # a learner this version cannot read
+    saved["learners"]["NIRL"]["setting_of_a_later_version"] = 1
+    (out / "experiment.json").write_text(json.dumps(saved))
+    assert protocol.output_state(out, e).startswith("holds another experiment (it differs in: learners (NIRL")
 
 
 def test_interrupted_training_resumes_to_the_uninterrupted_result(tmp_path):

@@ -10,7 +10,7 @@ from nirl_mj.data.features import N_ACTIONS
 from nirl_mj.data.rundir import CHECKPOINT_FILE, RunDir, RunError
 from nirl_mj.experiments.demos import ExpertConfig, collect
 from nirl_mj.experiments.training import load_policy, train
-from nirl_mj.learn.config import LearnerConfig
+from nirl_mj.learn.config import LearnerConfig, checked_changes
 from nirl_mj.learn.reward import RewardModel, reward_feature_names
 from nirl_mj.sim import spec
 
@@ -64,9 +64,10 @@ def test_algorithm_1_stops_once_the_margin_is_at_most_epsilon(tmp_path, demos):
             record = json.loads((run / "run.json").read_text(), parse_constant=strict)
             assert record["config"]["epsilon"] is None
     assert LearnerConfig.preset("paper").loop.epsilon == 0.0
-    assert LearnerConfig().loop.epsilon is None
-    with pytest.raises(ValueError, match="epsilon = nan: expected a number"):
-        tiny_config(epsilon=float("nan"))
+    assert LearnerConfig().loop.epsilon is None and tiny_config(epsilon=float("nan")).loop.epsilon is None
+    # as an experiment file or --config spells it: stored as None too, so experiment.json stays strict
+    assert checked_changes({"epsilon": float("-inf")}, "[config]") == {"epsilon": None}
+    assert checked_changes({"epsilon": 0}, "[config]") == {"epsilon": 0.0}
 
 
 @pytest.mark.parametrize("matching", ["occupancy", "policy"])

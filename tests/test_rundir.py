@@ -73,3 +73,20 @@ def test_evaluations_of_one_run_in_several_processes_keep_every_entry(tmp_path):
     assert [worker.exitcode for worker in workers] == [0] * 4
     assert set(RunDir(path).read_evaluations()) == {f"w{w}-{i}" for w in range(4) for i in range(25)}
     assert RunDir(path).names() == {EVAL_FILE}  # the lock file went with its last holder
+
+
+def test_metrics_rows_are_strict_json_a_missing_margin_null(tmp_path):
+    """A run without a reward step (the controls) has no margin (NaN in memory): written as null."""
+    import json
+
+    def strict(constant: str) -> None:
+        raise ValueError(f"not strict JSON: {constant}")
+
+    run = RunDir(tmp_path / "run")
+    run.path.mkdir()
+    run.start_metrics()
+    run.append_metrics({"episode": 0, "margin": float("nan"), "cost": 0.5, "validation_success": None})
+    line = run.file(METRICS_FILE).read_text()
+    assert json.loads(line, parse_constant=strict) == {"episode": 0, "margin": None, "cost": 0.5,
+                                                        "validation_success": None}  # fmt: skip
+    assert run.read_metrics()[0]["margin"] is None

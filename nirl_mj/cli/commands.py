@@ -149,7 +149,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     def progress(m: dict) -> None:
         bar.update()
-        if m["margin"] == m["margin"]:  # a NIRL row (the controls learn no reward: margin NaN)
+        if m["margin"] is not None:  # a NIRL row (the controls learn no reward: no margin, null)
             bar.set_postfix(margin=f"{m['margin']:.3f}", acc=f"{m['demo_accuracy']:.2f}",
                             succ=f"{m['success_rate']:.1f}")  # fmt: skip
 

@@ -26,6 +26,7 @@ as finished once its record holds ``train_seeds`` and the policy file exists.
 from __future__ import annotations
 
 import json
+import math
 import os
 import zipfile
 from collections.abc import Callable, Mapping
@@ -160,10 +161,13 @@ class RunDir:
         write_text(self.file(METRICS_FILE), "")
 
     def append_metrics(self, row: Mapping[str, Any]) -> None:
+        """Appends one iteration's row; a value that is not a finite number (the margin of a run
+        without a reward step, NaN) is written as null, so that every line is strict JSON."""
         # An append, not an atomic rewrite: a crash may leave one row past the checkpoint,
         # which keep_metrics removes on resume.
+        finite = {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
         with open(self.file(METRICS_FILE), "a") as f:
-            f.write(json.dumps(dict(row)) + "\n")
+            f.write(json.dumps(finite) + "\n")
 
     def keep_metrics(self, iterations: int) -> None:
         """Keeps the first ``iterations`` rows (those the checkpoint covers)."""

@@ -113,13 +113,25 @@ def recorded_differences(out: Path, experiment: Experiment) -> tuple[list[str], 
     was, now = unspelled_identity(saved), unspelled_identity(identity)
     if isinstance(saved.get("learners"), dict):
         # as they compute, read as their runs are: a setting's older spelling (epsilon -inf, now
-        # None) or a setting added since, at the value it had then, changes no cell
-        was["learners"] = {**saved["learners"], **resolved_learners(saved, skip_retired=True)}
+        # None) or a setting added since, at the value it had then, changes no cell; one this version
+        # cannot read is kept as written, a difference like any other
+        was["learners"] = {name: _resolved(flat) for name, flat in saved["learners"].items()}
     # every key either holds: one written only when set (test_domain, demos_per_run) differs when
     # it goes back to its default too ("runs", in identities of old, was never part of one)
     differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
     grown = set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
     return [_described(k, was, now) for k in differ], bool(differ) and grown
+
+
+def _resolved(flat: Any) -> Any:
+    """A saved learner's settings as its runs are read (``LearnerConfig.from_record``), or as written
+    if this version cannot read them."""
+    from nirl_mj.learn.config import LearnerConfig
+
+    try:
+        return LearnerConfig.from_record(flat).to_dict()
+    except (TypeError, ValueError, AttributeError):
+        return flat
 
 
 def _described(key: str, was: dict, now: dict) -> str:
@@ -210,7 +222,10 @@ def grows(saved: dict, identity: dict, runs: int) -> bool:
     new_methods = unspelled_identity(identity)["methods"]
     if any(m not in new_methods for m in unspelled_identity(saved)["methods"]):
         return False
-    old, new = resolved_learners(saved), identity["learners"]
+    try:
+        old, new = resolved_learners(saved), identity["learners"]
+    except ExperimentError:  # a saved learner this version cannot read: not this experiment grown
+        return False
     if any(new.get(name) != flat for name, flat in old.items()):
         return False
     added = [LearnerConfig.from_dict(new[n]) for n in new if n not in old]

@@ -104,11 +104,7 @@ class LoopConfig:
         return self.terminal_value == "outcome" and self.terminal_arrival_value != 0
 
     def __post_init__(self) -> None:
-        if self.epsilon is not None:
-            if math.isnan(self.epsilon):
-                raise ValueError("epsilon = nan: expected a number (the margin at which the loop stops)")
-            if self.epsilon == -math.inf:  # never reached: the same as no stop, and strict JSON
-                object.__setattr__(self, "epsilon", None)
+        object.__setattr__(self, "epsilon", never_stop(self.epsilon))
         _choice("method", self.method, METHODS)
         _choice("reward_source", self.reward_source, REWARD_SOURCES)
         _choice("reward_features", self.reward_features, ("paper", "extended", "bearing"))
@@ -392,6 +388,12 @@ class LearnerConfig:
         return LearnerConfig.from_dict({**self.to_dict(), **changes})
 
 
+def never_stop(epsilon: float | None) -> float | None:
+    """``epsilon`` as a config holds it: a margin the loop can never fall to (-inf, or nan, which no
+    margin is at most) is None, "never stop", as records written before 2026-11-30 held -inf."""
+    return None if epsilon is None or math.isnan(epsilon) or epsilon == -math.inf else epsilon
+
+
 def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
     """Flat field changes checked against the fields' default types (whole numbers become floats
     where a float is expected); ``where`` names the source in errors, ``exclude`` lists fields that
@@ -407,5 +409,5 @@ def checked_changes(changes: Mapping[str, Any], where: str, exclude: tuple[str, 
             value = float(value)
         if type(value) is not kind:
             raise ValueError(f"{where}.{key} = {value!r}: expected a {kind.__name__}")
-        out[key] = value
+        out[key] = never_stop(value) if key == "epsilon" else value  # as it is stored: strict JSON
     return out
