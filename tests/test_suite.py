@@ -389,6 +389,18 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     assert main(["leaderboard", str(partial), "--out", str(tmp_path / "v")]) == 0
     board = (tmp_path / "v" / "leaderboard.md").read_text()
     assert "| BC | 1 of 2 |" in board and "| rule | 2 |" in board and "**Runs `k of n`**" in board
+    # the same computation in a second directory fills the runs the first lacks: nothing is partial
+    assert main(["leaderboard", str(partial), str(a), "--out", str(tmp_path / "u")]) == 0
+    board = (tmp_path / "u" / "leaderboard.md").read_text()
+    assert "| BC | 2 |" in board and "k of n" not in board
+    # as many runs but other ones (other test arenas): marked too
+    other = shutil.copytree(a, tmp_path / "other")
+    kept = [line for line in (other / "rows.csv").read_text().splitlines()
+            if ",BC,0," not in line and ",rule,1," not in line]  # fmt: skip
+    (other / "rows.csv").write_text("\n".join(kept) + "\n")
+    assert main(["leaderboard", str(other), "--out", str(tmp_path / "t")]) == 0
+    board = (tmp_path / "t" / "leaderboard.md").read_text()
+    assert "| BC | 1 of 2 |" in board and "| rule | 1 of 2 |" in board
 
 
 def test_the_leaderboard_reads_what_each_directory_recorded_and_nothing_from_a_damaged_file(tmp_path):
@@ -555,3 +567,19 @@ def test_a_point_with_fewer_finished_runs_than_the_experiment_says_how_many():
     # one run paired: its difference, no interval (as compare's paired table shows it)
     partial.update(runs=1, paired={"mean": -0.6, "ci": [None, None], "runs": 1})
     assert "| NIRL-MAP | -60.0 (1 run) | - |" in _paired_table(summary, experiment, axis)
+
+
+def test_the_leaderboard_names_a_method_without_runs_at_a_point():
+    """A suite's training axis computed with --points for some values only: the methods that have
+    no finished run at a value are named under its table, not silently left out."""
+    from nirl_mj.experiments.leaderboard import markdown
+
+    def point(value: str, method: str, runs: list[int]) -> dict:
+        return {"axis": "demonstrations", "value": value, "method": method, "run_ids": runs,
+                "runs": len(runs), "avg": 0.5, "ci": [0.4, 0.6], "spl": 0.4, "sct": None}  # fmt: skip
+
+    summary = [point("10", "NIRL", [0, 1]), point("10", "BC", [0, 1]), point("30", "BC", [0, 1])]
+    table = markdown(summary, {"NIRL": "a", "BC": "a"}, {"NIRL": None, "BC": None})
+    ten, thirty = table.split("## demonstrations = 30")
+    assert "No finished run" not in ten and "No finished run here: NIRL." in thirty
+    assert "k of n" not in table

@@ -685,8 +685,9 @@ def _plan_text(experiment, out: Path) -> str:
              f"task {e.task.name}, tests on {e.test_task.name}", _set_line(e)]  # fmt: skip
     for a in e.axes:
         own = a.test_task is not None and a.test_task != e.test_task
-        lines.append(f"axis {a.name}{f' (tests on {a.test_task.name})' if own else ''}: "
-                     f"{', '.join(map(str, a.values))}")  # fmt: skip
+        # an axis's own test task keeps its arenas: [set]'s arena values do not reach its tests
+        tests_on = f" (tests on {a.test_task.name}, its own arena: not set's arena.*)" if own else ""
+        lines.append(f"axis {a.name}{tests_on}: {', '.join(map(str, a.values))}")
     if e.kind == "sweep":
         lines.append(f"cells: {len(e.obstacles)} obstacle counts x {len(e.speeds)} speeds")
     lines.append(f"methods ({len(e.methods)}):")
@@ -700,9 +701,10 @@ def _plan_text(experiment, out: Path) -> str:
 
 def _set_line(experiment) -> str:
     """``--check``: the experiment file's ``[set]`` (with --quick, its ``[quick]`` table's merged in), the
-    values it changes in the task, the test task and a suite's axes' tasks, as ``SECTION.KEY=VALUE``
-    (VALUE as JSON), sorted. The Experiment holds the changed tasks only: the table is read again from
-    its file (already checked by load_experiment)."""
+    values it changes in the task and the test task, as ``SECTION.KEY=VALUE`` (VALUE as JSON), sorted
+    (an axis with a test task of its own keeps that task's arena; a sweep's cells and a test axis set
+    the value they vary, as the plan's other lines say). The Experiment holds the changed tasks only:
+    the table is read again from its file (already checked by load_experiment)."""
     from nirl_mj.experiments.definition import merged_tables
 
     data = specs.read_toml(Path(experiment.source), "experiment file", ExperimentError)

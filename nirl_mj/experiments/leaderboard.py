@@ -118,11 +118,12 @@ def merge(
                                       "differ): rename one of them in its experiment file")  # fmt: skip
             if reads.get(name) is None:
                 reads[name] = recorded.get(name)
-            if name in methods:  # the same computation: taken from the first directory
+            if name in methods:  # the same computation: taken from the first directory that holds a run
                 mine = [r for r in found if r["method"] == name]
-                notes += _disagreements(
-                    name, [r for r in rows if r["method"] == name], mine, source[name], str(d)
-                )
+                kept = [r for r in rows if r["method"] == name]
+                notes += _disagreements(name, kept, mine, source[name], str(d))
+                held = {(r["axis"], r["value"], r["run"]) for r in kept}
+                rows += [r for r in mine if (r["axis"], r["value"], r["run"]) not in held]
                 continue
             methods[name], source[name] = m, str(d)
             rows += [r for r in found if r["method"] == name]
@@ -159,14 +160,14 @@ def points(rows: list[dict]) -> list[dict]:
         per = []
         for method in dict.fromkeys(r["method"] for r in here):
             mine = sorted((r for r in here if r["method"] == method), key=lambda r: r["run"])
-            per.append({"axis": axis, "value": value, "method": method,
+            per.append({"axis": axis, "value": value, "method": method, "run_ids": [r["run"] for r in mine],
                         **summarise_runs([tidy.as_metrics(r) for r in mine])})  # fmt: skip
         out += sorted(per, key=lambda p: -p["avg"])
     return out
 
 
 def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[str] | None]) -> str:
-    parts, partial = [], False
+    parts, partial, everyone = [], False, list(dict.fromkeys(p["method"] for p in summary))
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
         lines = [
@@ -174,29 +175,36 @@ def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[
             "|---|---|---|---|---|---|---|---|",
         ]
         here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)]
-        most = max(p["runs"] for p in here)
-        partial |= any(p["runs"] < most for p in here)
         for rank, p in enumerate(here, start=1):
             ci = p.get("ci") or [None, None]
             band = f" [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]" if ci[0] is not None else ""
             sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
             success = f"{100 * p['avg']:.1f}{band}"
-            runs = f"{p['runs']} of {most}" if p["runs"] < most else str(p["runs"])
+            runs = partial_runs(p, here) or p["runs"]
             lines.append(f"| {rank} | {p['method']} | {runs} | {success} | {p['spl']:.2f} | "
                          f"{sct} | {reads_text(reads[p['method']])} | `{source[p['method']]}` |")  # fmt: skip
-        parts.append(title + "\n".join(lines))
+        partial |= any(partial_runs(p, here) for p in here)
+        absent = [m for m in everyone if m not in {p["method"] for p in here}]
+        none_here = f"\n\nNo finished run here: {', '.join(absent)}." if absent else ""
+        parts.append(title + "\n".join(lines) + none_here)
     if partial:
         parts.append(PARTIAL)
     return "\n\n".join(parts)
 
 
+def partial_runs(point: dict, here: list[dict]) -> str | None:
+    """``k of n`` when a method lacks some of the n runs its point's methods hold between them."""
+    every = set().union(*(p["run_ids"] for p in here))
+    return f"{point['runs']} of {len(every)}" if set(point["run_ids"]) != every else None
+
+
 PARTIAL = (
-    "**Runs `k of n`**: a method that holds fewer finished runs than the most any method holds here "
-    "(an experiment not finished, or a trial on fewer runs) is averaged over its own runs, on their "
-    "test arenas only: its average compares with the others' only loosely, and its interval is "
-    "wider. Finish its runs (rerun its experiment) to rank it on the same arenas."
+    "**Runs `k of n`**: a method that holds k of the n runs the methods of its point hold between them "
+    "(an experiment not finished, or a trial on other runs) is averaged over its own runs, on their "
+    "test arenas only: its average compares with the others' only loosely, and its interval is wider "
+    "(none with one run). Finish its runs (rerun its experiment) to rank it on the same arenas."
 )
-"""Said under a leaderboard in which some method holds fewer runs than another."""
+"""Said under a leaderboard in which some method lacks runs that others hold."""
 
 
 def bar_plot(path: Path, summary: list[dict]) -> Path:
@@ -219,7 +227,8 @@ def bar_plot(path: Path, summary: list[dict]) -> Path:
             [100 * (p["ci"][1] - p["avg"]) if p.get("ci") and p["ci"][1] is not None else 0 for p in here],
         ]
         ax.barh(list(y), avg, xerr=err, color="#4c78a8", capsize=3)
-        ax.set_yticks(list(y), [p["method"] for p in here], fontsize=8)
+        labels = [p["method"] + (f" ({k} runs)" if (k := partial_runs(p, here)) else "") for p in here]
+        ax.set_yticks(list(y), labels, fontsize=8)
         ax.set_xlim(0, 100)
         ax.set_xlabel("success (%)")
         ax.set_title(f"{axis} = {value}" if axis else "leaderboard", fontsize=9)
