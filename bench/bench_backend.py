@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 import numpy as np
@@ -86,7 +87,9 @@ def cpu_speed(decisions: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--device", choices=("cpu", "cuda"), default="cuda")
+    parser.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cuda", help="Warp's device (default: cuda)"
+    )
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 64, 1024, 8192])
     parser.add_argument("--decisions", type=int, default=None, help="timed decisions (default 20; quick: 3)")
     parser.add_argument(
@@ -102,7 +105,8 @@ def main() -> None:
         help="CUDA graph of a decision: both (graph, then launch by launch; default), on or off; "
         "the CPU device has no graphs (off)",
     )
-    parser.add_argument("--quick", action="store_true", help="tiny settings; writes no docs")
+    parser.add_argument("--quick", action="store_true",
+                        help="tiny settings; writes no docs (else: PERFORMANCE.md's section)")  # fmt: skip
     parser.add_argument("--json", action="store_true", help="print one JSON line last")  # fmt: skip
     args = parser.parse_args()
     if args.device == "cpu" and args.graph == "on":
@@ -185,4 +189,7 @@ def _body(device: str, decisions: int, rows: list, cpu: float, check: dict, agre
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ValueError as exc:  # a device Warp cannot use, named by WarpWorlds: one line, not a traceback
+        sys.exit(f"bench_backend.py: {exc}")

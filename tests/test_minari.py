@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import warnings
 
@@ -63,6 +65,14 @@ def test_a_minari_dataset_trains_like_its_file(exported, tmp_path):
     run = tmp_path / "run"
     assert main(["train", "--demos", f"minari:{ID}", "--out", str(run), "--quiet", *SMALL, *config]) == 0
     assert json.loads((run / "run.json").read_text())["demos"] == f"minari:{ID}"
+    # inspect reads minari:ID as train does: the same summary as the file's
+    summaries = []
+    for source in (str(exported), f"minari:{ID}"):
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            assert main(["inspect", source, "--json"]) == 0
+        summaries.append(json.loads(out.getvalue().strip().splitlines()[-1]))
+    assert summaries[0] == summaries[1]
 
 
 def test_bad_minari_input_is_a_clear_error(exported, tmp_path, capsys, monkeypatch):

@@ -156,7 +156,8 @@ def test_path_is_used_as_given(tmp_path, trajs):
     assert len(load_dataset(tmp_path / "demos.dat")) == 4
 
 
-def test_documented_numpy_reader_works(tmp_path, trajs, capsys):
+def test_documented_numpy_reader_works(tmp_path, trajs, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the quick start reads demos.npz from the working directory
     path = save_dataset(tmp_path / "demos.npz", trajs)
     text = (ROOT / "docs" / "DATASET.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
@@ -165,6 +166,7 @@ def test_documented_numpy_reader_works(tmp_path, trajs, capsys):
     for block in blocks:
         exec(block, namespace)  # noqa: S102 - our own documentation
     np.testing.assert_array_equal(namespace["phi"], trajs[0].features)
+    np.testing.assert_array_equal(namespace["t"].features, trajs[0].features)  # the quick start's
     np.testing.assert_array_equal(namespace["actions"], trajs[0].actions)
     np.testing.assert_array_equal(namespace["pairs_phi"], stack_pairs(trajs)[0])
     assert "target planner 2.0" in capsys.readouterr().out

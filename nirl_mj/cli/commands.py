@@ -247,7 +247,9 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_inspect(args: argparse.Namespace) -> int:
-    trajectories = load_dataset(args.path)
+    from nirl_mj.experiments.training import load_demonstrations
+
+    trajectories = load_demonstrations(args.path, discrete=False)  # a file, or minari:ID as train reads
     summary = summarise(trajectories)
     print(f"{args.path}: valid nirl-mj dataset")
     print(f"demonstrators {summary['demonstrators']}  speeds {summary['speeds']}  tasks {summary['tasks']}")

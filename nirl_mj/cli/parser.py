@@ -174,8 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = _command(sub, "demos", c.cmd_demos, "record expert demonstrations to a dataset file", "json", "quiet",
                  "overwrite", "rerun=the demonstrations")  # fmt: skip
-    p.add_argument("--episodes", type=_positive_int, default=30)
-    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
+    p.add_argument("--episodes", type=_positive_int, default=30, help="episodes to record (default: 30)")
+    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor",
+                   help="the demonstrator, docs/EXPERTS.md (default: sensor)")  # fmt: skip
     # None when not given: they configure --expert noisy only, and are refused with another expert
     p.add_argument("--base", choices=[k for k in EXPERT_KINDS if k != "noisy"], default=None,
                    help="noisy: the expert it perturbs (default: sensor)")  # fmt: skip
@@ -183,15 +184,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="noisy: probability an action slips (default: 0.1)")  # fmt: skip
     p.add_argument("--random-action", type=_probability, default=None,
                    help="noisy: probability of a random action (default: 0.05)")  # fmt: skip
-    p.add_argument("--seed", type=_seed, default=0)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the arenas (default: 0)")
     p.add_argument("--out", required=True, help="dataset path (.npz)")
     p.add_argument("--workers", type=_workers, default=None, help="processes (default: all cores)")
 
     p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and "
                  "record "
                  "the episodes", "overwrite")
-    p.add_argument("--episodes", type=_positive_int, default=30)
-    p.add_argument("--seed", type=_seed, default=0)
+    p.add_argument("--episodes", type=_positive_int, default=30, help="episodes to drive (default: 30)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the arenas (default: 0)")
     p.add_argument("--out", required=True, help="dataset path (.npz)")
 
     p = _command(sub, "train", c.cmd_train, "train NIRL on demonstrations (resumable)", "quiet",
@@ -302,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = _command(
         sub, "inspect", c.cmd_inspect, "validate a dataset file and print its summary", "json", task=None
     )
-    p.add_argument("path")
+    p.add_argument("path", help="dataset file (.npz), or minari:ID: a local Minari dataset (nirl-mj export)")
     p = _command(
         sub, "task", c.cmd_task, "validate a task file and print the resolved spec as JSON", task=None
     )

@@ -51,17 +51,18 @@ MINARI = "minari:"
 """``--demos minari:ID``: a local Minari dataset (``nirl_mj.gym.minari_export``) instead of a file."""
 
 
-def load_demonstrations(source: str | os.PathLike) -> list[Trajectory]:
+def load_demonstrations(source: str | os.PathLike, discrete: bool = True) -> list[Trajectory]:
     """The trajectories of a dataset file (docs/DATASET.md), or of the local Minari dataset ID for
-    ``minari:ID`` (written by ``nirl-mj export``; needs the optional extra ``nirl-mj[gym]``), for a
-    learner of the six discrete actions: demonstrations of continuous actions are a clear error."""
+    ``minari:ID`` (written by ``nirl-mj export``; needs the optional extra ``nirl-mj[gym]``). With
+    ``discrete`` (a learner of the six discrete actions) continuous actions are a clear error."""
     if str(source).startswith(MINARI):
         from nirl_mj.gym.minari_export import load_minari
 
         trajectories = load_minari(str(source)[len(MINARI) :])
     else:
         trajectories = load_dataset(source)
-    require_discrete(trajectories, str(source))
+    if discrete:
+        require_discrete(trajectories, str(source))
     return trajectories
 
 
