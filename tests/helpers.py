@@ -1,5 +1,7 @@
 """Shared pieces of the learning tests: the open arena the short runs learn in, and their measure."""
 
+import contextlib
+import re
 import signal
 import subprocess
 import sys
@@ -139,3 +141,17 @@ def replay(env, episode, seed: int) -> tuple[dict, list, list]:
         for key, value in obs.items():
             replayed[key].append(value)
     return replayed, rewards, ends
+
+
+def run_dataset_doc(path: Path) -> dict:
+    """Every python block of docs/DATASET.md executed, in order, on the dataset ``path`` (named
+    demos.npz: the quick start reads it from the working directory, so it runs in path's folder,
+    the numpy reader as ``path``); returns the blocks' namespace."""
+    assert path.name == "demos.npz", path
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "DATASET.md").read_text(), re.S)
+    assert len(blocks) >= 2
+    namespace = {"path": path}
+    with contextlib.chdir(path.parent):
+        for block in blocks:
+            exec(block, namespace)  # noqa: S102 - our own documentation
+    return namespace

@@ -8,11 +8,10 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import re
 
 import numpy as np
 import pytest
-from helpers import ROOT, replay
+from helpers import replay, run_dataset_doc
 
 from nirl_mj.cli import main
 from nirl_mj.data.dataset import DatasetError, dataset_digest, load_dataset, save_dataset
@@ -77,10 +76,7 @@ def test_continuous_demonstrations_are_float_shares_that_reload_and_say_their_ki
     out = capsys.readouterr().out
     assert "continuous actions (" in out and "MAP pretreatment" not in out
     summary = json.loads(out.strip().splitlines()[-1])
-    namespace = {"path": demos}  # the plain-numpy reader of docs/DATASET.md, on a continuous file
-    text = (ROOT / "docs" / "DATASET.md").read_text()
-    for block in re.findall(r"```python\n(.*?)```", text, re.S):
-        exec(block, namespace)  # noqa: S102 - our own documentation
+    namespace = run_dataset_doc(demos)  # docs/DATASET.md's readers, on a continuous file
     assert namespace["kind"] == "continuous" and np.array_equal(namespace["actions"], trajectories[0].actions)
     assert summary["action_kind"] == "continuous" and summary["pairs"] == len(shares)
     assert summary["mean_action"]["forward"] == pytest.approx(float(shares[:, 0].astype(np.float64).mean()))

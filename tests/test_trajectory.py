@@ -1,11 +1,11 @@
 """Trajectory, recorder and the dataset file: round trip, corruption, atomic writes."""
 
 import os
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import run_dataset_doc
 
 from nirl_mj import make_env
 from nirl_mj.data.dataset import DatasetError, load_dataset, save_dataset
@@ -156,15 +156,8 @@ def test_path_is_used_as_given(tmp_path, trajs):
     assert len(load_dataset(tmp_path / "demos.dat")) == 4
 
 
-def test_documented_numpy_reader_works(tmp_path, trajs, capsys, monkeypatch):
-    monkeypatch.chdir(tmp_path)  # the quick start reads demos.npz from the working directory
-    path = save_dataset(tmp_path / "demos.npz", trajs)
-    text = (ROOT / "docs" / "DATASET.md").read_text()
-    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
-    assert len(blocks) >= 2
-    namespace = {"path": path}
-    for block in blocks:
-        exec(block, namespace)  # noqa: S102 - our own documentation
+def test_documented_numpy_reader_works(tmp_path, trajs, capsys):
+    namespace = run_dataset_doc(save_dataset(tmp_path / "demos.npz", trajs))
     np.testing.assert_array_equal(namespace["phi"], trajs[0].features)
     np.testing.assert_array_equal(namespace["t"].features, trajs[0].features)  # the quick start's
     np.testing.assert_array_equal(namespace["actions"], trajs[0].actions)
