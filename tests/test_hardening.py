@@ -311,3 +311,19 @@ def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path
     assert not (tmp_path / "np").exists()
     knn = Path(__file__).resolve().parents[1] / "examples" / "knn_method" / "experiment.toml"
     refused(capsys, ["compare", "--task", str(knn), "--quick", "--report"], "has no [quick] table")
+
+
+def test_a_progress_bar_drawn_at_its_first_step_is_timed_from_when_the_work_began():
+    """The bar is made when the first step ends (so that an input error prints under none): its
+    elapsed time and first rate count from its creation, not 1 / (a few microseconds)."""
+    import io
+    import time
+
+    from nirl_mj.cli.commands import _LazyBar
+
+    bar = _LazyBar(total=3, unit="episode", file=io.StringIO())
+    time.sleep(0.2)
+    bar.update()
+    assert bar.format_dict["elapsed"] >= 0.2
+    assert bar.format_dict["n"] / bar.format_dict["elapsed"] < 10  # one episode in >= 0.2 s
+    bar.close()

@@ -8,6 +8,7 @@ import dataclasses
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 from tqdm import tqdm
@@ -52,11 +53,13 @@ class _LazyBar:
     found before any work starts prints its one line under no empty bar."""
 
     def __init__(self, **kw) -> None:
-        self._kw, self._bar = kw, None
+        self._kw, self._bar, self._made = kw, None, time.time()
 
     def __getattr__(self, name: str):
         if self._bar is None:
             self._bar = tqdm(**self._kw)
+            # timed from when the work began, not from its first step's end (a rate of 1/0)
+            self._bar.start_t = self._bar.last_print_t = self._made
         return getattr(self._bar, name)
 
     def close(self) -> None:
@@ -68,6 +71,10 @@ class _LazyBar:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _episodes(n: int) -> str:
+    return f"{n} episode{'s' * (n != 1)}"
 
 
 def _bar(args: argparse.Namespace, total: int, unit: str, **kw) -> _LazyBar:
@@ -180,7 +187,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     spec, agent, trajectories = env.task.spec, make_expert(args.policy), []
     print(f"task {spec.name}: {spec.arena.static_obstacles} static + {spec.arena.moving_obstacles} moving "
           f"obstacles, {spec.control.speed} m/s, {spec.robot.drive} drive; policy {args.policy}; "
-          f"{args.episodes} episodes, seed {args.seed}", file=sys.stderr)  # fmt: skip
+          f"{_episodes(args.episodes)}, seed {args.seed}", file=sys.stderr)  # fmt: skip
     with _bar(args, args.episodes, "episode") as bar:
         for i in range(args.episodes):
             trajectories.append(run_episode(env, agent, episode_seed(args.seed, i)))
@@ -212,7 +219,7 @@ def _demos(args: argparse.Namespace) -> int:
                          "them out")  # fmt: skip
     expert = ExpertConfig(args.expert, seed=args.seed, **{f: v for f, v in noise.values() if v is not None})
     workers = args.workers or default_workers()
-    print(f"demonstrations: {args.episodes} episodes of {spec.name} by the {args.expert} expert, "
+    print(f"demonstrations: {_episodes(args.episodes)} of {spec.name} by the {args.expert} expert, "
           f"seed {args.seed}, {workers} worker(s)", file=sys.stderr)  # fmt: skip
     with _bar(args, args.episodes, "episode") as bar:
 
