@@ -31,6 +31,12 @@ def _check_osmesa() -> None:
 
 
 _check_osmesa()
+if os.environ["MUJOCO_GL"] == "glfw" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    # dm_control starts GLFW when imported, by every command: without a display it warns twice, and
+    # nothing renders anyway (a renderer is refused with one line: inspect.video.check_gl_platform)
+    import warnings
+
+    warnings.filterwarnings("ignore", module="glfw")
 # One BLAS thread per process: the learner's matrices are small, parallelism comes
 # from processes (demos, experiments), and a multi-threaded BLAS sharing cores with
 # them spins: measured 40x slower max-margin steps (12.6 s against 0.3 s per 20

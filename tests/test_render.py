@@ -244,3 +244,19 @@ def test_osmesa_without_its_library_is_named_at_import_not_deep_in_pyopengl():
         "ImportError: MUJOCO_GL=osmesa, but no OSMesa library is installed: install it (Debian: sudo "
         "apt-get install libosmesa6), or unset MUJOCO_GL to render offscreen through EGL (the default)"
     )
+
+
+def test_glfw_without_a_display_is_refused_before_any_gl_context(monkeypatch):
+    """dm_control would fail deep in mjr_makeContext (and print a traceback at exit): one line instead."""
+    from nirl_mj.inspect.video import RenderError, check_gl_platform
+
+    monkeypatch.setenv("MUJOCO_GL", "glfw")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(RenderError, match="neither DISPLAY nor WAYLAND_DISPLAY is set: unset MUJOCO_GL"):
+        check_gl_platform()
+    monkeypatch.setenv("DISPLAY", ":0")
+    check_gl_platform()  # a display: left to GLFW
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    monkeypatch.delenv("DISPLAY")
+    check_gl_platform()  # offscreen: needs none

@@ -73,6 +73,22 @@ EGL_FIX = (
     "sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri), or set MUJOCO_GL=osmesa "
     "(needs libosmesa6) or MUJOCO_GL=glfw (needs a display) before starting"
 )
+
+
+def has_display() -> bool:
+    """Whether an X11 or Wayland display is named (what MUJOCO_GL=glfw renders through)."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def check_gl_platform() -> None:
+    """Refuses, before any GL context is made, a renderer that cannot work: MUJOCO_GL=glfw without
+    a display (dm_control would fail deep in mjr_makeContext and print a traceback at exit)."""
+    if os.environ.get("MUJOCO_GL") == "glfw" and not has_display():
+        raise RenderError("MUJOCO_GL=glfw renders through a display, and neither DISPLAY nor WAYLAND_DISPLAY "
+                          "is set: unset MUJOCO_GL to render offscreen through EGL (the default), or run "
+                          "under a display (xvfb-run)")  # fmt: skip
+
+
 _OUTCOME_RGBA = {
     "target": (0.16, 0.67, 0.24, 1.0),
     "collision": (0.86, 0.2, 0.16, 1.0),
@@ -160,6 +176,7 @@ class View:
 
     def __init__(self, env: Any, camera: str, width: int, height: int) -> None:
         check_frame(camera, width, height)
+        check_gl_platform()
         from dm_control.mujoco import engine
 
         self._env, self._camera = env, camera
