@@ -320,8 +320,7 @@ class RunJob:
     ``config``: the resolved learner config of the training run, flat (``LearnerConfig.to_dict``;
     trainable methods); ``run_dir`` an absolute path (``OUT/runs/METHOD/SEED``); ``test_seeds`` the
     run's test arenas. ``trained_by`` names the method whose training run this job reads (its
-    ``run_dir`` and ``config``; :func:`training_owners`), ``policy`` which of its policies
-    ("selected" or "last")."""
+    ``run_dir`` and ``config``; :func:`training_owners`)."""
 
     method: MethodSpec
     run: int
@@ -333,7 +332,11 @@ class RunJob:
     test_seeds: tuple[int, ...]
     expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
     trained_by: str = ""  # another method's training run, read instead of training again ("": its own)
-    policy: str = "selected"
+
+    @property
+    def policy(self) -> str:
+        """Which policy of the training run the job tests: another method's run lends its last iterate."""
+        return "last" if self.trained_by else "selected"
 
 
 def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[tuple[str, int], RunJob]:
@@ -352,11 +355,9 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
             owner = owners.get(method.name, method)
             config = owner.learner_config(experiment.config).to_dict() if method.trains else {}
             run_dir = out / "runs" / owner.name / str(seed)
-            shared = owner is not method
             jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(path), str(run_dir),
                                             config, seeds, experiment.expert,
-                                            trained_by=owner.name if shared else "",
-                                            policy="last" if shared else "selected")  # fmt: skip
+                                            trained_by=owner.name if owner is not method else "")  # fmt: skip
     # a job that reads another's training run starts after every other job, so that on a few workers
     # that run is finished when it starts (on many, it waits for the run's lock: the same result)
     return dict(sorted(jobs.items(), key=lambda item: bool(item[1].trained_by)))
