@@ -132,7 +132,10 @@ def _import_warp():
         raise RuntimeError(
             f"the warp backend needs the optional extra: pip install -e '.[warp]' ({e})"
         ) from None
+    # no start-up banner and no line per kernel module: Warp 1.19 reads log_level (quiet, before it,
+    # is no longer read); warnings and errors still show
     wp.config.quiet = True
+    wp.config.log_level = getattr(wp, "LOG_WARNING", 30)
     return wp, mjw
 
 
