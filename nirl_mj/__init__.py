@@ -31,7 +31,9 @@ def _check_osmesa() -> None:
 
 
 _check_osmesa()
-if os.environ["MUJOCO_GL"] == "glfw" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+from nirl_mj.sim.display import display_available  # noqa: E402 - after MUJOCO_GL is set; stdlib only
+
+if os.environ["MUJOCO_GL"] == "glfw" and not display_available():
     # dm_control starts GLFW when imported, by every command: without a display it warns twice, and
     # nothing renders anyway (a renderer is refused with one line: inspect.video.check_gl_platform)
     import warnings

@@ -250,6 +250,7 @@ def test_glfw_without_a_display_is_refused_before_any_gl_context(monkeypatch):
     """dm_control would fail deep in mjr_makeContext (and print a traceback at exit): one line instead."""
     from nirl_mj.inspect.video import RenderError, check_gl_platform
 
+    monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.setenv("MUJOCO_GL", "glfw")
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

@@ -1,5 +1,6 @@
 """Keyboard teleoperation, headless: the key handling apart from the viewer."""
 
+import sys
 import threading
 
 import pytest
@@ -39,7 +40,7 @@ def test_reset_drops_keys_pressed_between_episodes():
 def test_teleop_without_display_is_a_clear_error(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    monkeypatch.setattr(teleop.sys, "platform", "linux")
+    monkeypatch.setattr(sys, "platform", "linux")
     assert main(["teleop", "--out", str(tmp_path / "human.npz")]) == 2
     assert "teleop needs a display" in capsys.readouterr().err
     assert not (tmp_path / "human.npz").exists()
@@ -47,10 +48,12 @@ def test_teleop_without_display_is_a_clear_error(tmp_path, monkeypatch, capsys):
 
 @pytest.mark.parametrize("display", [":0", ""])
 def test_display_detection(monkeypatch, display):
-    monkeypatch.setattr(teleop.sys, "platform", "linux")
+    monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.setenv("DISPLAY", display)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert teleop.display_available() == bool(display)
+    monkeypatch.setattr(sys, "platform", "darwin")  # a window opens without DISPLAY (GLFW on macOS)
+    assert teleop.display_available()
 
 
 class _FakeViewer:

@@ -23,15 +23,14 @@ Backspace             end this episode now, discard it
 from __future__ import annotations
 
 import enum
-import os
 import queue
-import sys
 from collections.abc import Callable
 from typing import Any
 
 import dm_env
 
 from nirl_mj.data.trajectory import Trajectory
+from nirl_mj.sim.display import display_available
 
 # GLFW key codes (what mujoco.viewer's key_callback receives).
 KEY_RIGHT, KEY_LEFT, KEY_DOWN, KEY_UP = 262, 263, 264, 265
@@ -97,13 +96,6 @@ class KeyboardTeleop:
         while not isinstance(item := self.next(), int):
             pass
         return item
-
-
-def display_available() -> bool:
-    """Whether an interactive window can open (a display on Linux; always elsewhere)."""
-    return not sys.platform.startswith("linux") or bool(
-        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    )
 
 
 def require_display() -> None:

@@ -60,6 +60,7 @@ from nirl_mj.data.trajectory import Trajectory  # noqa: E402
 from nirl_mj.experts.policies import PolicyAgent  # noqa: E402
 from nirl_mj.inspect.recording import DANGER_COLOURS  # noqa: E402
 from nirl_mj.sim.arena import OFFSCREEN_SIZE  # noqa: E402
+from nirl_mj.sim.display import display_available  # noqa: E402
 from nirl_mj.sim.episode import run_episode  # noqa: E402
 from nirl_mj.sim.spec import TaskSpec, load_task  # noqa: E402
 from nirl_mj.sim.task import checked_action  # noqa: E402
@@ -75,15 +76,10 @@ EGL_FIX = (
 )
 
 
-def has_display() -> bool:
-    """Whether an X11 or Wayland display is named (what MUJOCO_GL=glfw renders through)."""
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
 def check_gl_platform() -> None:
     """Refuses, before any GL context is made, a renderer that cannot work: MUJOCO_GL=glfw without
     a display (dm_control would fail deep in mjr_makeContext and print a traceback at exit)."""
-    if os.environ.get("MUJOCO_GL") == "glfw" and not has_display():
+    if os.environ.get("MUJOCO_GL") == "glfw" and not display_available():
         raise RenderError("MUJOCO_GL=glfw renders through a display, and neither DISPLAY nor WAYLAND_DISPLAY "
                           "is set: unset MUJOCO_GL to render offscreen through EGL (the default), or run "
                           "under a display (xvfb-run)")  # fmt: skip
