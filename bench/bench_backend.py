@@ -36,7 +36,7 @@ from nirl_mj.experiments.backend_check import compare_with_cpu
 from nirl_mj.experts.policies import PolicyAgent, rule_actions, rule_policy
 from nirl_mj.sim.episode import run_episode
 from nirl_mj.sim.task import make_env
-from nirl_mj.sim.warp_worlds import WarpWorlds
+from nirl_mj.sim.warp_worlds import WarpWorlds, check_device
 
 try:
     from report import markdown_table, write_section
@@ -109,6 +109,10 @@ def main() -> None:
                         help="tiny settings; writes no docs (else: PERFORMANCE.md's section)")  # fmt: skip
     parser.add_argument("--json", action="store_true", help="print one JSON line last")  # fmt: skip
     args = parser.parse_args()
+    try:
+        check_device(args.device)  # one line, not a traceback, for a device Warp cannot use here
+    except (ValueError, RuntimeError) as exc:
+        sys.exit(f"bench_backend.py: {exc}")
     if args.device == "cpu" and args.graph == "on":
         parser.error("--graph on: CUDA graphs need --device cuda; accepted on cpu: both, off")
     modes = (
@@ -189,7 +193,4 @@ def _body(device: str, decisions: int, rows: list, cpu: float, check: dict, agre
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except ValueError as exc:  # a device Warp cannot use, named by WarpWorlds: one line, not a traceback
-        sys.exit(f"bench_backend.py: {exc}")
+    main()

@@ -483,6 +483,7 @@ def test_only_a_last_iterate_row_with_the_same_settings_but_selection_shares_a_t
     assert (job.trained_by, job.policy, job.run_dir) == ("NIRL", "last", jobs["NIRL", 0].run_dir)
     assert job.config == jobs["NIRL", 0].config  # the run's settings, with NIRL's selection
     assert (jobs["last-wide", 0].trained_by, jobs["val", 0].policy) == ("", "selected")
+    assert [m for (m, _), j in jobs.items() if j.shared_run] == ["NIRL", "NIRL-last", "val-last"]
     without = dataclasses.replace(e, methods=tuple(m for m in e.methods if m.name != "NIRL"))
     assert protocol.training_owners(without) == {"val-last": e.methods[0]}  # the first last-iterate row's
 

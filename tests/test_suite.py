@@ -393,6 +393,7 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     assert main(["leaderboard", str(partial), str(a), "--out", str(tmp_path / "u")]) == 0
     board = (tmp_path / "u" / "leaderboard.md").read_text()
     assert "| BC | 2 |" in board and "k of n" not in board
+    assert f"| `{partial}`, `{a}` |" in board and "| rule | 2 |" in board  # BC's run 1 is a's
     # as many runs but other ones (other test arenas): marked too
     other = shutil.copytree(a, tmp_path / "other")
     kept = [line for line in (other / "rows.csv").read_text().splitlines()

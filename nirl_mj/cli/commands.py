@@ -712,14 +712,8 @@ def _set_line(experiment) -> str:
     """``--check``: the experiment file's ``[set]`` (with --quick, its ``[quick]`` table's merged in), the
     values it changes in the task and the test task, as ``SECTION.KEY=VALUE`` (VALUE as JSON), sorted
     (an axis with a test task of its own keeps that task's arena; a sweep's cells and a test axis set
-    the value they vary, as the plan's other lines say). The Experiment holds the changed tasks only:
-    the table is read again from its file (already checked by load_experiment)."""
-    from nirl_mj.experiments.definition import merged_tables
-
-    data = specs.read_toml(Path(experiment.source), "experiment file", ExperimentError)
-    if experiment.quick:
-        data = merged_tables(data, data.get("quick", {}))
-    table = data.get("set", {})
+    the value they vary, as the plan's other lines say)."""
+    table = experiment.overrides
     values = [f"{section}.{key}={json.dumps(value)}"
               for section in sorted(table) for key, value in sorted(table[section].items())]  # fmt: skip
     return "set: " + (", ".join(values) or "none")

@@ -315,6 +315,9 @@ class Experiment:
     demos_per_run: bool = False
     test_domain: str = "test"  # "test": the development arenas; "final": the reported tables' arenas
     axes: tuple[Axis, ...] = ()  # a suite's
+    # the file's [set] (with --quick, its [quick] table's merged in), as the tasks above hold it:
+    # what --check prints; not part of the identity (the tasks are)
+    overrides: dict = field(default_factory=dict, compare=False)
 
     def identity(self) -> dict:
         """Everything that changes a cell's result, as JSON: an output directory holds one identity."""
@@ -450,6 +453,7 @@ def from_dict(
         demos_per_run=_bool(demos.get("per_run", False), f"{where('demos')}.per_run"),
         test_domain=_choice(data.get("test_domain", "test"), TEST_DOMAINS, where("test_domain")),
         axes=_axes(data, test_task, base, where, overrides) if kind == "suite" else (),
+        overrides=overrides,
     )  # fmt: skip
     check_seed_range(experiment, where("seed"))
     check_actions(experiment.methods, (experiment.task, experiment.test_task), source)

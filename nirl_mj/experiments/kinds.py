@@ -46,10 +46,10 @@ def ensure_trained(job) -> dict:
     from nirl_mj.experiments.training import ensure_trained as ensure_run
     from nirl_mj.learn.config import LearnerConfig
 
-    # waits for the run's lock: a run shared by two methods' jobs (protocol.training_owners) may be
-    # training in the other's cell now, whichever started first (OUT's own lock keeps other commands out)
+    # a run shared by two methods' jobs (protocol.training_owners) may be training in the other's cell
+    # now, whichever started first: its lock is waited for (any other holder is refused at once)
     return ensure_run(job.run_dir, job.task, job.demos_path, LearnerConfig.from_dict(job.config), job.seed,
-                      wait=True)  # fmt: skip
+                      wait=job.shared_run)  # fmt: skip
 
 
 def _irl(job, train: bool) -> Trained:

@@ -88,8 +88,9 @@ def recorded_reads(path: str | Path) -> dict[str, list[str]]:
 
 def merge(
     dirs: list[str | Path],
-) -> tuple[list[dict], dict[str, str], dict[str, list[str] | None], list[str]]:
-    """The merged tidy rows of ``dirs``, each method's source directory, what each method reads
+) -> tuple[list[dict], dict[str, list[str]], dict[str, list[str] | None], list[str]]:
+    """The merged tidy rows of ``dirs``, each method's source directories (the first, then any that
+    adds runs the ones before lack), what each method reads
     (:func:`recorded_reads`, from the first directory that records it; None if none does), and the
     runs on which two directories' same computation disagrees (:func:`_disagreements`); refuses
     directories of another protocol and a method name that means two computations."""
@@ -114,31 +115,38 @@ def merge(
         for m in methods_of:
             name = m["name"]
             if name in methods and methods[name] != m:
-                raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name]} (settings "
-                                      "differ): rename one of them in its experiment file")  # fmt: skip
+                raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name][0]} "
+                                      "(settings differ): rename one of them in its experiment "
+                                      "file")  # fmt: skip
             if reads.get(name) is None:
                 reads[name] = recorded.get(name)
             if name in methods:  # the same computation: taken from the first directory that holds a run
                 mine = [r for r in found if r["method"] == name]
-                kept = [r for r in rows if r["method"] == name]
-                notes += _disagreements(name, kept, mine, source[name], str(d))
-                held = {(r["axis"], r["value"], r["run"]) for r in kept}
-                rows += [r for r in mine if (r["axis"], r["value"], r["run"]) not in held]
+                kept = {_point_run(r): r for r in rows if r["method"] == name}
+                notes += _disagreements(name, kept, mine, source[name][0], str(d))
+                added = [r for r in mine if _point_run(r) not in kept]
+                rows += added
+                if added:  # the "from" column names every directory the method's runs come from
+                    source[name].append(str(d))
                 continue
-            methods[name], source[name] = m, str(d)
+            methods[name], source[name] = m, [str(d)]
             rows += [r for r in found if r["method"] == name]
     return rows, source, reads, notes
 
 
-def _disagreements(name: str, kept: list[dict], other: list[dict], first: str, second: str) -> list[str]:
-    """Where two directories' rows of one method (one identity) differ on a run both hold, beyond the
-    CSV's 6 digits: one line each, naming the columns and both values. The same computation on
-    another machine can end elsewhere (floating point); the first directory's row is the one kept."""
-    where = ("axis", "value", "run")
-    held = {tuple(r[k] for k in where): r for r in kept}
+def _point_run(row: dict) -> tuple:
+    """A tidy row's (axis, value, run): a run of one method at one point."""
+    return row["axis"], row["value"], row["run"]
+
+
+def _disagreements(name: str, held: dict, other: list[dict], first: str, second: str) -> list[str]:
+    """Where two directories' rows of one method (one identity) differ on a run both hold (``held``:
+    the first's rows by :func:`_point_run`), beyond the CSV's 6 digits: one line each, naming the
+    columns and both values. The same computation on another machine can end elsewhere (floating
+    point); the first directory's row is the one kept."""
     notes = []
     for r in other:
-        mine = held.get(tuple(r[k] for k in where))
+        mine = held.get(_point_run(r))
         if mine is None:
             continue
         measured = [k for k in ("tests", *tidy.RATES) if None not in (mine[k], r[k])]
@@ -166,7 +174,7 @@ def points(rows: list[dict]) -> list[dict]:
     return out
 
 
-def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[str] | None]) -> str:
+def markdown(summary: list[dict], source: dict[str, list[str]], reads: dict[str, list[str] | None]) -> str:
     parts, partial, everyone = [], False, list(dict.fromkeys(p["method"] for p in summary))
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
@@ -181,8 +189,9 @@ def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[
             sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
             success = f"{100 * p['avg']:.1f}{band}"
             runs = partial_runs(p, here) or p["runs"]
+            where = from_text(source[p["method"]])
             lines.append(f"| {rank} | {p['method']} | {runs} | {success} | {p['spl']:.2f} | "
-                         f"{sct} | {reads_text(reads[p['method']])} | `{source[p['method']]}` |")  # fmt: skip
+                         f"{sct} | {reads_text(reads[p['method']])} | {where} |")  # fmt: skip
         partial |= any(partial_runs(p, here) for p in here)
         absent = [m for m in everyone if m not in {p["method"] for p in here}]
         none_here = f"\n\nNo finished run here: {', '.join(absent)}." if absent else ""
@@ -190,6 +199,11 @@ def markdown(summary: list[dict], source: dict[str, str], reads: dict[str, list[
     if partial:
         parts.append(PARTIAL)
     return "\n\n".join(parts)
+
+
+def from_text(dirs: list[str]) -> str:
+    """The "from" column: every directory a method's runs come from (the first holds most)."""
+    return ", ".join(f"`{d}`" for d in dirs)
 
 
 def partial_runs(point: dict, here: list[dict]) -> str | None:
@@ -260,7 +274,7 @@ def _write(
     dirs: list[str | Path],
     overwrite: bool,
     rows: list[dict],
-    source: dict[str, str],
+    source: dict[str, list[str]],
     reads: dict[str, list[str] | None],
     notes: list[str],
 ) -> tuple[str, list[Path]]:

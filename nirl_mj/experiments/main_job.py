@@ -152,8 +152,7 @@ def main_job(
         for (name, _), job in jobs.items()
     ]
     cells.sort(key=lambda cell: START_ORDER.index(cell.id) if cell.id in START_ORDER else len(START_ORDER))
-    runs = dict.fromkeys(job.run_dir for job in jobs.values() if job.method.trains)  # shared ones once
-    trained = [RunDir(path) for path in runs]
+    trained = [RunDir(job.run_dir) for job in jobs.values() if job.method.trains]
     log(f"training and testing {len(cells)} methods ({execution.executor}, {workers} worker(s))")
     with follow_metrics(trained, on_metrics), execution.start(out, log) as runner:
         report = runner.run(cells)

@@ -115,23 +115,12 @@ def recorded_differences(out: Path, experiment: Experiment) -> tuple[list[str], 
         # as they compute, read as their runs are: a setting's older spelling (epsilon -inf, now
         # None) or a setting added since, at the value it had then, changes no cell; one this version
         # cannot read is kept as written, a difference like any other
-        was["learners"] = {name: _resolved(flat) for name, flat in saved["learners"].items()}
+        was["learners"] = resolved_learners(saved, as_written=True)
     # every key either holds: one written only when set (test_domain, demos_per_run) differs when
     # it goes back to its default too ("runs", in identities of old, was never part of one)
     differ = sorted(k for k in set(identity) | (set(saved) - {"runs"}) if was.get(k) != now.get(k))
     grown = set(differ) <= {"methods", "learners"} and grows(saved, identity, experiment.runs)
     return [_described(k, was, now) for k in differ], bool(differ) and grown
-
-
-def _resolved(flat: Any) -> Any:
-    """A saved learner's settings as its runs are read (``LearnerConfig.from_record``), or as written
-    if this version cannot read them."""
-    from nirl_mj.learn.config import LearnerConfig
-
-    try:
-        return LearnerConfig.from_record(flat).to_dict()
-    except (TypeError, ValueError, AttributeError):
-        return flat
 
 
 def _described(key: str, was: dict, now: dict) -> str:
@@ -191,20 +180,23 @@ def unspelled_identity(identity: dict) -> dict:
     return {**{k: v for k, v in identity.items() if k != "config"}, "methods": methods}
 
 
-def resolved_learners(saved: dict, skip_retired: bool = False) -> dict[str, dict]:
+def resolved_learners(saved: dict, skip_retired: bool = False, as_written: bool = False) -> dict[str, dict]:
     """A saved identity's learners, each resolved as its run records are (a setting added since it
     was saved takes the value it had then: ``LearnerConfig.from_record``). A learner this version
     cannot read is an error; with ``skip_retired``, one that holds a retired setting at a value that
     did something (``learn/config.py`` RETIRED) is left out instead: it cannot be the computation of
-    any learner of this version."""
+    any learner of this version; with ``as_written``, any such learner is kept as written (a
+    difference from every learner of this version)."""
     from nirl_mj.learn.config import LearnerConfig, holds_retired
 
     resolved = {}
     for name, flat in saved.get("learners", {}).items():
         try:
             resolved[name] = LearnerConfig.from_record(flat).to_dict()
-        except (TypeError, ValueError) as exc:
-            if not (skip_retired and holds_retired(flat)):
+        except (TypeError, ValueError, AttributeError) as exc:
+            if as_written:
+                resolved[name] = flat
+            elif not (skip_retired and holds_retired(flat)):
                 raise ExperimentError(
                     f"the saved experiment's learners cannot be read by this version: {exc}"
                 ) from None
@@ -332,6 +324,7 @@ class RunJob:
     test_seeds: tuple[int, ...]
     expert: str = "sensor"  # the demonstrator, DAgger's interactive expert
     trained_by: str = ""  # another method's training run, read instead of training again ("": its own)
+    shared_run: bool = False  # another job reads this job's run, or this job another's: wait for its lock
 
     @property
     def policy(self) -> str:
@@ -345,6 +338,7 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
     from nirl_mj.data.dataset import load_dataset
 
     owners = training_owners(experiment)
+    sharing = {*owners, *(owner.name for owner in owners.values())}
     jobs, seeds_of = {}, {}
     for run, path in demos.items():
         if path not in seeds_of:
@@ -357,7 +351,8 @@ def run_jobs(experiment: Experiment, out: Path, demos: dict[int, Path]) -> dict[
             run_dir = out / "runs" / owner.name / str(seed)
             jobs[method.name, run] = RunJob(method, run, seed, experiment.task, str(path), str(run_dir),
                                             config, seeds, experiment.expert,
-                                            trained_by=owner.name if owner is not method else "")  # fmt: skip
+                                            trained_by=owner.name if owner is not method else "",
+                                            shared_run=method.name in sharing)  # fmt: skip
     # a job that reads another's training run starts after every other job, so that on a few workers
     # that run is finished when it starts (on many, it waits for the run's lock: the same result)
     return dict(sorted(jobs.items(), key=lambda item: bool(item[1].trained_by)))

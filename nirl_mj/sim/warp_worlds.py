@@ -139,6 +139,15 @@ def _import_warp():
     return wp, mjw
 
 
+def check_device(device: str) -> None:
+    """A clear ValueError unless Warp can run on ``device`` here (a known name; a GPU for "cuda")."""
+    if device not in DEVICES:
+        raise ValueError(f"device {device!r}: accepted: {', '.join(DEVICES)}")
+    wp, _ = _import_warp()
+    if device == "cuda" and not wp.is_cuda_available():
+        raise ValueError("device 'cuda': Warp sees no CUDA GPU on this machine; accepted here: cpu")
+
+
 class WarpWorlds:
     """N worlds of one task on MuJoCo Warp; every world runs its own episode.
 
@@ -170,11 +179,8 @@ class WarpWorlds:
             raise ValueError(f"task {spec.name}: the warp backend does not simulate {'; '.join(problems)}")
         if not isinstance(worlds, int | np.integer) or worlds < 1:
             raise ValueError(f"worlds must be a positive integer, got {worlds!r}")
-        if device not in DEVICES:
-            raise ValueError(f"device {device!r}: accepted: {', '.join(DEVICES)}")
+        check_device(device)
         self._wp, self._mjw = wp, mjw = _import_warp()
-        if device == "cuda" and not wp.is_cuda_available():
-            raise ValueError("device 'cuda': Warp sees no CUDA GPU on this machine; accepted here: cpu")
         if graph and device != "cuda":
             raise ValueError(
                 f"graph = True: CUDA graphs need device 'cuda', got {device!r}; accepted here: None, False"
