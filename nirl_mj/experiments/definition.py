@@ -395,7 +395,7 @@ def from_dict(
         raise ExperimentError(f"{source} has no [quick] table, whose values --quick takes: run it without "
                               "--quick (or --runs 1), or give it one (docs/EXPERIMENTS.md)")  # fmt: skip
     if quick:
-        data = merged_tables(data, overrides)
+        data = _merge(data, overrides)
     quick_keys = data.get("quick", {}) if quick else {}
 
     def where(key: str) -> str:
@@ -767,12 +767,12 @@ def _task(value: Any, base: Path, overrides: dict, where: str, set_where: str) -
         raise ExperimentError(f"{set_where}: {exc}") from None
 
 
-def merged_tables(data: dict, changes: dict) -> dict:
+def _merge(data: dict, changes: dict) -> dict:
     """``data`` with ``changes`` applied, tables merged key by key."""
     out = dict(data)
     for key, value in changes.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merged_tables(out[key], value)
+            out[key] = _merge(out[key], value)
         else:
             out[key] = value
     return out
