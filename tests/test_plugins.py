@@ -43,6 +43,9 @@ class Walker:
             self.reads = tuple(reads)
 
     def train(self, demonstrations, make_env, budget, seed, workdir):
+        import os
+
+        left = sorted(os.listdir(workdir))  # what an attempt before it left there
         if self.forked:  # environments in forked processes: the budget is copied without pickling
             import gymnasium
 
@@ -53,7 +56,7 @@ class Walker:
                 vector.close(terminate=True)
         env = make_env()
         shape = None if demonstrations is None else list(demonstrations["observations"].shape)
-        seen = {"rewards": [], "infos": [], "shape": shape}
+        seen = {"rewards": [], "infos": [], "shape": shape, "left": left}
         for _ in range(self.episodes):
             obs, info = env.reset(seed=self.arena)
             seen["infos"].append(info)
@@ -93,6 +96,21 @@ class Still:
         def policy(observation):
             calls[0] += 1
             return first if self.answer is None or calls[0] <= self.after else self.answer
+
+        return policy
+
+
+class Breaks(Still):
+    """Its policy raises after ``after`` decisions."""
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        calls = [0]
+
+        def policy(observation):
+            calls[0] += 1
+            if calls[0] > self.after:
+                raise ValueError("policy broke at test time")
+            return 0
 
         return policy
 
@@ -141,7 +159,7 @@ def installed(tmp_path, monkeypatch):
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: walker-method\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
         "[nirl_mj.methods]\nWalker = walker_method:Walker\nSilent = walker_method:Silent\n"
-        "Still = walker_method:Still\nRaiser = walker_method:Raiser\n"
+        "Still = walker_method:Still\nRaiser = walker_method:Raiser\nBreaks = walker_method:Breaks\n"
         "BadSignature = walker_method:BadSignature\nPicky = walker_method:Picky\n"
         "StillOf = walker_method:still_of\nSTILL = walker_method:STILL\n"
     )
@@ -257,6 +275,30 @@ def test_a_policy_that_answers_out_of_range_later_fails_once_naming_it(installed
     assert "method 'Still': its policy answered an observation of shape (16,) with array(7)" in failed[0]
 
 
+def test_a_policy_that_raises_in_the_tests_fails_once_naming_the_method(installed, tmp_path, capsys):
+    """Its cell is seeded: another attempt would train and raise again, so none is made."""
+    path = spec(tmp_path, '["Breaks"]', "[method.Breaks]\nsettings = { after = 3 }\n")
+    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
+    assert "method 'Breaks': its policy raised ValueError: policy broke at test time" in failed[0]
+
+
+def test_every_attempt_of_an_installed_method_starts_in_an_empty_workdir(installed, tmp_path):
+    """A cell trains again from scratch, with its whole budget: what an attempt before it left in its
+    workdir (a checkpoint to resume past the budget) is gone."""
+    path = spec(tmp_path, '["Walker"]')
+    out = tmp_path / "out"
+    assert main(compare(path, out, "--runs", "1")) == 0
+    workdir = next((out / "runs" / "Walker").iterdir())
+    assert json.loads((workdir / "seen.json").read_text())["left"] == []
+    (out / "cells" / "Walker-run000.json").unlink()  # as a failed or killed attempt leaves it
+    (workdir / "checkpoint.bin").write_bytes(b"an earlier attempt's")
+    assert main(compare(path, out, "--runs", "1")) == 0
+    assert json.loads((workdir / "seen.json").read_text())["left"] == []
+    assert sorted(p.name for p in workdir.iterdir()) == ["seen.json"]
+
+
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):
     with pytest.raises(ExperimentError, match="method 'Silent': declare `reads`"):
         from_dict({"kind": "compare", "methods": ["Silent"]}, "e.toml")
@@ -300,6 +342,8 @@ def test_a_method_that_would_run_as_something_else_is_refused_before_anything_ru
             r"budget, seed, workdir\)")  # fmt: skip
     refused(["Picky"], r"method 'Picky': settings \{'k': 0\}: ValueError: k = 0: must be >= 1",
             {"Picky": {"settings": {"k": 0}}})  # fmt: skip
+    refused(["Still-1"], 'plugin = \'Still\' names an installed method: add kind = "plugin" to the table',
+            {"Still-1": {"plugin": "Still", "settings": {"answer": 1}}})  # fmt: skip
     factory = {"StillOf": {"settings": {"answer": 2}}}
     made = from_dict({"kind": "compare", "methods": ["StillOf"], "method": factory}, "e.toml")
     assert made.methods[0].declared_reads == ("demonstrations", "features")

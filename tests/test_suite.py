@@ -359,7 +359,8 @@ def test_the_leaderboard_merges_directories_of_one_protocol_and_refuses_others(t
     d = compared(tmp_path, "d", '["BC"]', '[method.BC]\nvariant = "paper"\n')  # one name, two computations
     capsys.readouterr()
     assert main(["leaderboard", str(a), str(d), "--out", str(tmp_path / "y")]) == 2
-    assert "method BC of" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "method BC of" in err and "(it differs in: clone, variant)" in err  # the fields, named
     # one identity, other results for a run both hold (another machine's floating point): the first's is
     # taken, and the disagreement listed; the CSV's rounding alone is none
     import shutil
@@ -584,3 +585,7 @@ def test_the_leaderboard_names_a_method_without_runs_at_a_point():
     ten, thirty = table.split("## demonstrations = 30")
     assert "No finished run" not in ten and "No finished run here: NIRL." in thirty
     assert "k of n" not in table
+    # a method of the experiments that finished no run at all (every cell failed) is named too
+    table = markdown(summary, {"NIRL": "a", "BC": "a"}, {"NIRL": None, "BC": None, "Mine": None})
+    ten, thirty = table.split("## demonstrations = 30")
+    assert "No finished run here: Mine." in ten and "No finished run here: NIRL, Mine." in thirty

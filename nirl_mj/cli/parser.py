@@ -137,8 +137,9 @@ def _experiment_command(sub, name: str, default: str, help: str) -> None:
                        "tables show the others' finished cells (not part of the identity)")  # fmt: skip
         p.add_argument("--restore", default=None, metavar="DIR",
                        help="first take the finished cells of a published suite (DIR holds NAME.csv and "
-                       "NAME.experiment.json, as docs/results/suites; with --only, those methods' only), "
-                       "then compute the rest: for an output directory lost with its machine")  # fmt: skip
+                       "NAME.experiment.json, as docs/results/suites, or is a suite's output directory; with "
+                       "--only, those methods' only), then compute the rest: for an output directory lost "
+                       "with its machine, or one whose methods changed")  # fmt: skip
     if name == "compare":
         p.add_argument("--reuse", default=None, metavar="OLD",
                        help="first copy the cells an earlier output directory OLD finished as the same "

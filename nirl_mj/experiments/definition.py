@@ -406,6 +406,8 @@ def from_dict(
 
     overrides = _table(data.get("set", {}), where("set"))
     _known(overrides, SET_SECTIONS, where("set"), "")
+    for section, values in overrides.items():  # each a table of the task's section (arena = {...})
+        _table(values, f"{where('set')}.{section}")
     task = _task(data.get("task", "navigate"), base, overrides, where("task"), where("set"))
     test_task = _task(
         data.get("test_task", data.get("task", "navigate")), base, overrides, where("test_task"), where("set")
@@ -415,6 +417,10 @@ def from_dict(
     _known(demos, DEMO_KEYS, where("demos"), "")
     expert = _choice(demos.get("expert", "sensor"), demonstrator_names(), f"{where('demos')}.expert")
     config = _learner_changes(_table(data.get("config", {}), where("config")), where("config"))
+    try:  # each value in its range here, named as [config]'s, whichever learners read it (or none)
+        LearnerConfig.preset("default", **config)
+    except ValueError as exc:
+        raise ExperimentError(f"{where('config')}: {exc}") from None
     methods = _methods(data, config, where, full_methods)
 
     strip = None
@@ -423,7 +429,7 @@ def from_dict(
         _known(table, STRIP_KEYS, where("strip"), "")
         strip = StripSpec(
             method=_member(table.get("method"), [m.name for m in methods], f"{where('strip')}.method"),
-            snapshots=_int(table.get("snapshots", 5), f"{where('strip')}.snapshots", 1),
+            snapshots=_int(table.get("snapshots", 5), f"{where('strip')}.snapshots", 2),  # a strip's two ends
             camera=_str(table.get("camera", "top"), f"{where('strip')}.camera"),
             width=_int(table.get("width", 480), f"{where('strip')}.width", 16),
             height=_int(table.get("height", 360), f"{where('strip')}.height", 16),
@@ -615,6 +621,9 @@ def _method(name: str, table: Any, config: dict, where: str) -> MethodSpec:
     else:
         table = _table(table, where)
         _known(table, METHOD_KEYS, where, "")
+        if base is None and "plugin" in table and "kind" not in table:
+            raise ExperimentError(f'{where}: plugin = {table["plugin"]!r} names an installed method: add '
+                                  'kind = "plugin" to the table (docs/EXTENDING.md)')  # fmt: skip
         if base is None and "kind" not in table and any(k in table for k in ("steps", "settings")):
             # an installed method's table, with no package installed that provides it
             raise ExperimentError(

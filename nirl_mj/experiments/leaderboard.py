@@ -22,7 +22,7 @@ from nirl_mj.data.atomic import leftover_temporaries, write_figure, write_text
 from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.experiments import tidy
 from nirl_mj.experiments.definition import ExperimentError
-from nirl_mj.experiments.reads import reads_text
+from nirl_mj.experiments.reads import is_reference, reads_text
 from nirl_mj.experiments.stats import summarise_runs
 
 PROTOCOL = ("kind", "task", "test_task", "seed", "tests", "test_domain", "expert", "demos", "demos_per_run",
@@ -115,9 +115,11 @@ def merge(
         for m in methods_of:
             name = m["name"]
             if name in methods and methods[name] != m:
+                fields = sorted(f for f in {*m, *methods[name]} if m.get(f) != methods[name].get(f))
+                code = ", its package's code changed" if "source" in fields else ""
                 raise ExperimentError(f"method {name} of {d} is not the {name} of {source[name][0]} "
-                                      "(settings differ): rename one of them in its experiment "
-                                      "file")  # fmt: skip
+                                      f"(it differs in: {', '.join(fields)}{code}): rename one of them in "
+                                      "its experiment file")  # fmt: skip
             if reads.get(name) is None:
                 reads[name] = recorded.get(name)
             if name in methods:  # the same computation: taken from the first directory that holds a run
@@ -175,7 +177,8 @@ def points(rows: list[dict]) -> list[dict]:
 
 
 def markdown(summary: list[dict], source: dict[str, list[str]], reads: dict[str, list[str] | None]) -> str:
-    parts, partial, everyone = [], False, list(dict.fromkeys(p["method"] for p in summary))
+    # every method the directories' experiments list, one that finished no run anywhere too
+    parts, partial, everyone = [], False, list(dict.fromkeys([*(p["method"] for p in summary), *reads]))
     for axis, value in dict.fromkeys((p["axis"], p["value"]) for p in summary):
         title = f"## {axis} = {value}\n\n" if axis else ""
         lines = [
@@ -221,8 +224,9 @@ PARTIAL = (
 """Said under a leaderboard in which some method lacks runs that others hold."""
 
 
-def bar_plot(path: Path, summary: list[dict]) -> Path:
-    """A panel per point: each method's average success with its 95 % interval, best on top."""
+def bar_plot(path: Path, summary: list[dict], reads: dict[str, list[str] | None] | None = None) -> Path:
+    """A panel per point: each method's average success with its 95 % interval, best on top; a
+    reference (``reads`` holds a task signal or an expert) in grey, "(reference)" after its name."""
     from nirl_mj.inspect.canvas import subplots
 
     groups = list(dict.fromkeys((p["axis"], p["value"]) for p in summary))
@@ -240,8 +244,12 @@ def bar_plot(path: Path, summary: list[dict]) -> Path:
             [100 * (p["avg"] - p["ci"][0]) if p.get("ci") and p["ci"][0] is not None else 0 for p in here],
             [100 * (p["ci"][1] - p["avg"]) if p.get("ci") and p["ci"][1] is not None else 0 for p in here],
         ]
-        ax.barh(list(y), avg, xerr=err, color="#4c78a8", capsize=3)
-        labels = [p["method"] + (f" ({k} runs)" if (k := partial_runs(p, here)) else "") for p in here]
+        reference = [is_reference((reads or {}).get(p["method"]) or []) for p in here]
+        ax.barh(list(y), avg, xerr=err, color=["#9a9a9a" if r else "#4c78a8" for r in reference], capsize=3)
+        labels = [
+            p["method"] + " (reference)" * r + (f" ({k} runs)" if (k := partial_runs(p, here)) else "")
+            for p, r in zip(here, reference, strict=True)
+        ]
         ax.set_yticks(list(y), labels, fontsize=8)
         ax.set_xlim(0, 100)
         ax.set_xlabel("success (%)")
@@ -302,5 +310,6 @@ def _write(
                "averaged over each method's runs (95 % Student-t interval); the directories share their "
                f"protocol and test arenas.\n\n{table}\n\n![leaderboard](leaderboard.png)\n")  # fmt: skip
     write_text(out / "leaderboard.csv", tidy.csv_text(rows))
-    files = [out / "leaderboard.md", out / "leaderboard.csv", bar_plot(out / "leaderboard.png", summary)]
+    figure = bar_plot(out / "leaderboard.png", summary, reads)
+    files = [out / "leaderboard.md", out / "leaderboard.csv", figure]
     return table, files

@@ -79,10 +79,15 @@ def open_output(out: str | Path, experiment: Experiment, record: bool = True) ->
     if marker.is_file():
         differ, grown = recorded_differences(out, experiment)
         if differ and not grown:
+            # a method changed (its settings, or its package's code once fixed): the other rows' cells
+            # still hold, and the command that keeps them is the one to name
+            keep = (f"; to compute the changed methods beside the cells of the others, a compare takes "
+                    f"--out NEW --reuse {out}, a suite --out NEW --restore {out}"
+                    if any(d.startswith("methods (") for d in differ) else "")  # fmt: skip
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "
-                "runs' test arenas stay the same; none may change or go)"
+                f"runs' test arenas stay the same; none may change or go){keep}"
             )
         # grown by new methods (the same learners spelled otherwise keep what they were)
         if differ and record:
@@ -571,5 +576,8 @@ def failed_section(summary: dict) -> str:
     if summary["failures"]:
         rows = "".join(f"\n- `{f['id']}` failed after {f['attempts']} attempt(s): {f['error']}"
                        for f in summary["failures"])  # fmt: skip
-        text += f"\nFailed cells (rerun the same command to try them again):{rows}\n"
+        text += (
+            f"\nFailed cells (rerun the same command to try them again; a method fixed since is another "
+            f"computation: a new --out with --reuse, docs/EXTENDING.md section 4):{rows}\n"
+        )
     return text

@@ -178,7 +178,7 @@ def run_config(
         raise ValueError(f"selection {selection!r}: accepted: {', '.join(SELECTIONS)}")
     if selection == "demo_balanced" and algo not in ADVERSARIAL:
         raise ValueError(f"selection demo_balanced reads demonstrations; {algo} has none: use "
-                         "training_success or last")  # fmt: skip
+                         "training_success, validation_success or last")  # fmt: skip
     if envs < 1 or CHECKPOINT_EVERY % envs:
         raise ValueError(f"envs = {envs}: must be >= 1 and divide the {CHECKPOINT_EVERY} decisions between "
                          "checkpoints")  # fmt: skip
