@@ -86,6 +86,38 @@ def test_parallel_collection_equals_serial():
     assert len({t.arena_seed for t in serial}) == 3
 
 
+def test_a_collection_stopped_part_way_records_only_the_episodes_it_lacks(tmp_path):
+    """``demos`` keeps finished episodes beside its output until it is written: started again, the
+    same collection loads them and records the rest, the same dataset as one uninterrupted run."""
+    expert, keep = ExpertConfig("noisy", base="rule", slip=0.3, random=0.2, seed=5), tmp_path / ".d.episodes"
+    whole = collect(TINY, expert, episodes=4, seed=11)
+    recorded = []
+
+    def stop_after_two(trajectory) -> None:
+        recorded.append(trajectory)
+        if len(recorded) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        collect(TINY, expert, episodes=4, seed=11, on_episode=stop_after_two, keep=keep)
+    assert len(list(keep.glob("episode-*.npz"))) == 2
+    said = []
+    resumed = collect(TINY, expert, episodes=4, seed=11, keep=keep, log=said.append)
+    assert said == [f"resumed: 2 of 4 episodes were recorded in {keep}"]
+    for a, b in zip(whole, resumed, strict=True):
+        np.testing.assert_array_equal(a.actions, b.actions)
+        np.testing.assert_array_equal(a.features, b.features)
+    # another collection's episodes there are replaced, not taken; a folder of a user's files is refused
+    other = collect(TINY, expert, episodes=2, seed=12, keep=keep, log=said.append)
+    assert len(said) == 1 and [t.arena_seed for t in other] == [episode_seed(12, i) for i in range(2)]
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    with pytest.raises(FileExistsError, match="holds files no collection wrote \\(notes.txt\\)"):
+        collect(TINY, expert, episodes=1, seed=11, keep=mine)
+    assert (mine / "notes.txt").read_text() == "mine"
+
+
 def test_trajectory_remembers_its_arena():
     env = make_env(TINY)
     trajectory = run_episode(env, PolicyAgent.named("rule"), episode_seed(3, 0))
@@ -116,6 +148,7 @@ def test_cli_demos_then_inspect(tmp_path, capsys):
     summary = capsys.readouterr().out.strip().splitlines()[-1]
     assert '"episodes": 2' in summary and '"success_rate"' in summary
     assert len(load_dataset(out)) == 2
+    assert not (tmp_path / ".demos.npz.episodes").exists()  # the kept episodes go once it is written
     before = out.read_bytes()
     assert main([*args, "--quiet"]) == 2  # exists: refused, untouched
     assert "pass --overwrite" in capsys.readouterr().err

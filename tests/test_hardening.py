@@ -309,8 +309,9 @@ def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path
     refused(capsys, ["compare", "--task", "table1", "--only", "Foo", "--out", str(tmp_path / "np" / "c")],
             "--only Foo")  # fmt: skip
     assert not (tmp_path / "np").exists()
-    knn = Path(__file__).resolve().parents[1] / "examples" / "knn_method" / "experiment.toml"
-    refused(capsys, ["compare", "--task", str(knn), "--quick", "--report"], "has no [quick] table")
+    plain = tmp_path / "plain.toml"  # an experiment without a [quick] table
+    plain.write_text('kind = "compare"\nruns = 1\ntests = 1\nmethods = ["rule"]\n')
+    refused(capsys, ["compare", "--task", str(plain), "--quick", "--report"], "has no [quick] table")
 
 
 def test_a_progress_bar_drawn_at_its_first_step_is_timed_from_when_the_work_began():

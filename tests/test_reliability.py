@@ -632,3 +632,37 @@ def test_an_output_whose_lock_cannot_be_written_is_refused_naming_where_the_lock
     with pytest.raises(PermissionError, match=said):
         lock_module.DirectoryLock(tmp_path / "out").acquire()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_damaged_training_run_of_an_experiment_fails_its_cell_once_naming_the_file(tmp_path, capsys):
+    """Running it again cannot repair a damaged stored run: the cell is not retried, and the line says
+    which file."""
+    from helpers import TINY_CONFIG, TINY_TABLES
+
+    spec = tmp_path / "e.toml"
+    spec.write_text(f'kind = "compare"\nruns = 1\ntests = 1\nmethods = ["NIRL"]\n{TINY_TABLES}{TINY_CONFIG}')
+    out = tmp_path / "out"
+    argv = ["compare", "--task", str(spec), "--out", str(out), "--executor", "serial", "--quiet"]
+    assert main(argv) == 0
+    (out / "cells" / "NIRL-run000.json").unlink()
+    policy = next((out / "runs" / "NIRL").glob(f"*/{POLICY_FILE}"))
+    policy.write_bytes(policy.read_bytes()[:300])
+    capsys.readouterr()
+    assert main(argv) == 1
+    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    assert len(failed) == 1 and "(1 attempt(s))" in failed[0] and f"{policy} is corrupted" in failed[0]
+
+
+def test_a_resume_whose_checkpoint_is_gone_is_refused_not_started_over(demos, finished, tmp_path, capsys):
+    """Only a run killed before its first checkpoint starts over; one with iterations recorded and no
+    checkpoint would have them replaced."""
+    import shutil
+
+    run = shutil.copytree(finished, tmp_path / "run")
+    (run / CHECKPOINT_FILE).unlink()
+    before = digests(run)
+    capsys.readouterr()
+    assert main(resume_args(demos, run)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"has iterations recorded but no {CHECKPOINT_FILE}" in err[0]
+    assert digests(run) == before  # nothing replaced

@@ -316,6 +316,46 @@ def test_a_resume_scores_on_with_its_success_window_and_a_legacy_run_resumes_fro
     assert "selection" not in json.loads((legacy / "run.json").read_text())["config"]
 
 
+def test_a_run_stopped_while_a_checkpoint_is_scored_resumes_from_the_model_its_record_describes(
+    tmp_path, monkeypatch
+):
+    """The model is written after the scoring (seconds of validation episodes), right before the
+    record: a stop during the scoring leaves the model the record describes. One ahead of its record
+    (a stop between the two writes) is refused, not trained on past the budget."""
+    from helpers import OPEN
+
+    from nirl_mj.data.rundir import RunError
+    from nirl_mj.experiments import rl
+
+    calls = []
+
+    def stopped_scorer(model, record, task, seed):
+        def score(best):
+            calls.append(int(model.num_timesteps))
+            if len(calls) == 2:
+                raise KeyboardInterrupt  # during the second checkpoint's validation episodes
+            return 0.5, 20
+
+        return score
+
+    run, kw = tmp_path / "run", {"seed": 0, "checkpoint_every": 512, "selection": "validation_success"}
+    monkeypatch.setattr(rl, "_validation_scorer", stopped_scorer)
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(run, OPEN, "ppo", 2048, **kw)
+    record = json.loads((run / "run.json").read_text())
+    saved = sb3.PPO.load(run / "model.zip", device="cpu")
+    assert record["steps_done"] == calls[0] == int(saved.num_timesteps) < calls[1]
+    monkeypatch.undo()
+    # on from the checkpoint: whole PPO rollouts of 1,024 decisions after it
+    done = rl.train_rl(run, OPEN, "ppo", 2048, resume=True, **kw)["steps_done"]
+    assert done == calls[0] + 2048
+    # a record behind its model: refused, naming both
+    record = json.loads((run / "run.json").read_text())
+    (run / "run.json").write_text(json.dumps({**record, "steps_done": 1024}))
+    with pytest.raises(RunError, match=f"its model holds {done} decisions but its record 1024"):
+        rl.train_rl(run, OPEN, "ppo", 4096, resume=True, **kw)
+
+
 def test_a_saved_model_drives_the_documented_features_environment_through_its_loader(tmp_path):
     """issue 33: PPO.load(model.zip) on observation="features" scored 0 %: the model acts on phi(s)
     scaled by its bounds. load_rl_policy applies that scaling; the raw PPO.load does not."""

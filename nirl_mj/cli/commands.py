@@ -7,6 +7,7 @@ import contextlib
 import dataclasses
 import json
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -26,7 +27,7 @@ from nirl_mj.data.rundir import (
 )
 from nirl_mj.experiments import compare, suite, sweep
 from nirl_mj.experiments.definition import ExperimentError, check_seed_range, load_experiment
-from nirl_mj.experiments.demos import ExpertConfig, collect
+from nirl_mj.experiments.demos import ExpertConfig, collect, kept_episodes_folder
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import default_workers
 from nirl_mj.experiments.main_job import main_experiment, main_job, report_table
@@ -227,8 +228,12 @@ def _demos(args: argparse.Namespace) -> int:
             bar.update()
             bar.set_postfix_str(trajectory.outcome)
 
-        trajectories = collect(spec, expert, args.episodes, args.seed, workers, progress)
+        # finished episodes are kept beside OUT until it is written: the same command resumes them
+        kept = kept_episodes_folder(out)
+        trajectories = collect(spec, expert, args.episodes, args.seed, workers, progress, keep=kept,
+                               log=lambda text: bar.write(text, file=sys.stderr))  # fmt: skip
     save_dataset(out, trajectories, overwrite=args.overwrite)
+    shutil.rmtree(kept, ignore_errors=True)
     summary = summarise(trajectories)
     pred = _summary(trajectories, summary)
     print(f"wrote {out}")

@@ -188,6 +188,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the arenas (default: 0)")
     p.add_argument("--out", required=True, help="dataset path (.npz)")
     p.add_argument("--workers", type=_workers, default=None, help="processes (default: all cores)")
+    p.set_defaults(interrupted="finished episodes are kept beside {out} until it is written: the same "
+                   "command records only the rest")  # fmt: skip
 
     p = _command(sub, "teleop", c.cmd_teleop, "drive the robot from the keyboard in MuJoCo's viewer and "
                  "record "

@@ -164,10 +164,13 @@ class RunDir:
         """Appends one iteration's row; a value that is not a finite number (the margin of a run
         without a reward step, NaN) is written as null, so that every line is strict JSON."""
         # An append, not an atomic rewrite: a crash may leave one row past the checkpoint,
-        # which keep_metrics removes on resume.
+        # which keep_metrics removes on resume. Synced before the checkpoint that follows it is
+        # written, so that after a power loss the rows are never behind the checkpoint.
         finite = {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
         with open(self.file(METRICS_FILE), "a") as f:
             f.write(json.dumps(finite) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
 
     def keep_metrics(self, iterations: int) -> None:
         """Keeps the first ``iterations`` rows (those the checkpoint covers)."""

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from nirl_mj.data.atomic import write_text
 from nirl_mj.data.dataset import load_dataset, save_dataset
 from nirl_mj.data.lock import process_folder
 from nirl_mj.data.trajectory import Trajectory
@@ -85,7 +86,7 @@ def demo_cell(task: TaskSpec, expert: ExpertConfig, seed: int, episode: int, fol
     if _runner is None or _runner.key != (task, expert):
         _runner = _Runner(task, expert)
     trajectory = run_episode(_runner.env, _runner.expert, episode_seed(seed, episode))
-    path = Path(folder) / f"episode-{episode:06d}.npz"
+    path = Path(folder) / _episode_file(episode)
     save_dataset(path, [trajectory], overwrite=True)  # a retried cell writes its episode again
     return str(path)
 
@@ -97,9 +98,15 @@ def collect(
     seed: int,
     workers: int = 1,
     on_episode: Callable[[Trajectory], None] | None = None,
+    keep: str | Path | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> list[Trajectory]:
     """Runs ``episodes`` demonstrations on ``workers`` processes (this one for 1); ``on_episode``
-    is called as each one finishes; the result, in episode order, is the same whatever ``workers`` is."""
+    is called as each one finishes; the result, in episode order, is the same whatever ``workers`` is.
+
+    ``keep``: a folder that keeps each finished episode (the caller removes it once the dataset is
+    written), so that the same collection stopped part-way and started again records only the
+    episodes it lacks (said through ``log``); one of another collection there is replaced."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if workers < 1:
@@ -114,14 +121,64 @@ def collect(
         if on_episode:
             on_episode(done[cell_id])
 
-    folder = process_folder(tempfile.gettempdir(), SCRATCH)  # those of killed collections go
+    if keep is None:
+        folder = process_folder(tempfile.gettempdir(), SCRATCH)  # those of killed collections go
+    else:
+        folder = _kept_folder(Path(keep), task, expert, seed)
     try:
         cells = [
             Cell(f"demo-{i:06d}", demo_cell, (task, expert, seed, i, str(folder))) for i in range(episodes)
         ]
-        executor = "serial" if workers == 1 or episodes == 1 else "local"
-        with Executor(executor, min(workers, episodes), retries=0) as runner:
-            runner.run(cells, on_done=arrived)
+        todo = []
+        for i, cell in enumerate(cells):
+            path = folder / _episode_file(i)
+            if keep is not None and path.is_file():  # written atomically: whole, or not there
+                arrived(cell.id, path, None)
+            else:
+                todo.append(cell)
+        if done and log:
+            log(f"resumed: {len(done)} of {episodes} episodes were recorded in {folder}")
+        executor = "serial" if workers == 1 or len(todo) == 1 else "local"
+        if todo:
+            with Executor(executor, min(workers, len(todo)), retries=0) as runner:
+                runner.run(todo, on_done=arrived)
         return [done[cell.id] for cell in cells]
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        if keep is None:
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+def kept_episodes_folder(out: str | Path) -> Path:
+    """Where ``nirl-mj demos --out OUT`` keeps its finished episodes until OUT is written: a hidden
+    folder beside OUT (under OUT's lock)."""
+    out = Path(out)
+    return out.parent / f".{out.name}.episodes"
+
+
+def _episode_file(episode: int) -> str:
+    return f"episode-{episode:06d}.npz"
+
+
+def _kept_folder(folder: Path, task: TaskSpec, expert: ExpertConfig, seed: int) -> Path:
+    """``folder`` for the collection (task, expert, seed): kept if it holds that collection's episodes,
+    emptied if another's."""
+    import hashlib
+    import json
+
+    identity = hashlib.sha256(repr((task, expert, seed)).encode()).hexdigest()
+    marker = folder / "collection.json"
+    try:
+        same = json.loads(marker.read_text())["identity"] == identity
+    except (OSError, ValueError, KeyError, TypeError):
+        same = False
+    if not same:
+        ours = (".", "episode-", marker.name)  # its temporaries, episodes and marker
+        names = [p.name for p in folder.iterdir()] if folder.is_dir() else [folder.name] * folder.exists()
+        foreign = [n for n in names if not n.startswith(ours)]
+        if foreign:
+            raise FileExistsError(f"{folder} holds files no collection wrote ({', '.join(foreign[:3])}): "
+                                  "move it aside, or choose another --out")  # fmt: skip
+        shutil.rmtree(folder, ignore_errors=True)  # another collection's episodes
+        folder.mkdir(parents=True)
+        write_text(marker, json.dumps({"identity": identity, "seed": seed, "expert": asdict(expert)}))
+    return folder

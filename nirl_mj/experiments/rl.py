@@ -433,7 +433,7 @@ def train_rl(
             callbacks.append(adv.training_callback(venv, reward))
         settings = _model_settings(config)
         if resume and run.file(MODEL_FILE).is_file():
-            model = cls.load(run.model_file(), env=venv, device="cpu")
+            model = _resumed_model(cls, run, venv, record["steps_done"])
         else:
             model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
         # a logger that writes nowhere: without one, each learn() makes an empty tempdir/SB3-<time> folder
@@ -452,9 +452,6 @@ def train_rl(
         def checkpoint(outcomes: list[bool]) -> None:
             """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
             ``outcomes``: the last training episodes ended (at most :data:`SUCCESS_WINDOW`)."""
-            if adversarial:
-                adv.save_discriminator(run, reward)
-            run.write_model(model.save)
             steps_now = int(model.num_timesteps)
             best = record.get("selected")
             score, driven = None, None
@@ -488,6 +485,12 @@ def train_rl(
             if selection == "training_success":
                 record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
             record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
+            # the model (and discriminator) right before the record, after the scoring (seconds of
+            # validation episodes): a kill between them leaves a model ahead of its record, refused
+            # by a resume (:func:`_resumed_model`), and the window is a few file writes wide
+            if adversarial:
+                adv.save_discriminator(run, reward)
+            run.write_model(model.save)
             run.write_record(record)
             if replaced:
                 run.file(replaced).unlink(missing_ok=True)
@@ -499,6 +502,18 @@ def train_rl(
     finally:
         venv.close()
     return record
+
+
+def _resumed_model(cls, run: RunDir, venv, steps_done: int):
+    """The run's saved model, refused unless it is the one its record describes: a process killed
+    between writing the model and the record leaves a model of more decisions whose arenas, scores
+    and outcomes the record does not hold (training on from it would train more than asked)."""
+    model = cls.load(run.model_file(), env=venv, device="cpu")
+    if int(model.num_timesteps) != steps_done:
+        raise RunError(f"{run}: its model holds {int(model.num_timesteps)} decisions but its record "
+                       f"{steps_done} (the process was stopped between the two writes); it cannot "
+                       "resume: train it again (--overwrite, or a new --out)")  # fmt: skip
+    return model
 
 
 def _demos_name(demos: str | os.PathLike) -> str:

@@ -194,8 +194,13 @@ def _train(
                            f"for {record.get('backend', cpu)}: resume with the run's --backend, --worlds and "
                            "--device (or none of them)")  # fmt: skip
         run.remove_leftovers()  # temporary files of a process killed while writing
-        # Killed before its first checkpoint: nothing to continue, so it starts over (same settings).
+        # Killed before its first checkpoint: nothing to continue, so it starts over (same settings);
+        # at most one metrics row (the first iteration's, appended before its checkpoint) is there.
         resume = run.has_checkpoint
+        if not resume and (run.iterations_done() > 1 or saved.get("train_seeds")):
+            raise RunError(f"{run} has iterations recorded but no {CHECKPOINT_FILE} (deleted or lost): it "
+                           "cannot be continued, and starting over would replace them; train it again in "
+                           "another --out")  # fmt: skip
     elif not run.is_empty():
         if not run.is_run:  # a resume would find no record to continue either
             raise RunError(f"{run} exists and holds no run of nirl-mj train (no {RUN_FILE}): nothing there "
