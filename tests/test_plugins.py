@@ -43,9 +43,6 @@ class Walker:
             self.reads = tuple(reads)
 
     def train(self, demonstrations, make_env, budget, seed, workdir):
-        import os
-
-        left = sorted(os.listdir(workdir))  # what an attempt before it left there
         if self.forked:  # environments in forked processes: the budget is copied without pickling
             import gymnasium
 
@@ -56,7 +53,7 @@ class Walker:
                 vector.close(terminate=True)
         env = make_env()
         shape = None if demonstrations is None else list(demonstrations["observations"].shape)
-        seen = {"rewards": [], "infos": [], "shape": shape, "left": left}
+        seen = {"rewards": [], "infos": [], "shape": shape}
         for _ in range(self.episodes):
             obs, info = env.reset(seed=self.arena)
             seen["infos"].append(info)
@@ -282,21 +279,6 @@ def test_a_policy_that_raises_in_the_tests_fails_once_naming_the_method(installe
     failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
     assert "method 'Breaks': its policy raised ValueError: policy broke at test time" in failed[0]
-
-
-def test_every_attempt_of_an_installed_method_starts_in_an_empty_workdir(installed, tmp_path):
-    """A cell trains again from scratch, with its whole budget: what an attempt before it left in its
-    workdir (a checkpoint to resume past the budget) is gone."""
-    path = spec(tmp_path, '["Walker"]')
-    out = tmp_path / "out"
-    assert main(compare(path, out, "--runs", "1")) == 0
-    workdir = next((out / "runs" / "Walker").iterdir())
-    assert json.loads((workdir / "seen.json").read_text())["left"] == []
-    (out / "cells" / "Walker-run000.json").unlink()  # as a failed or killed attempt leaves it
-    (workdir / "checkpoint.bin").write_bytes(b"an earlier attempt's")
-    assert main(compare(path, out, "--runs", "1")) == 0
-    assert json.loads((workdir / "seen.json").read_text())["left"] == []
-    assert sorted(p.name for p in workdir.iterdir()) == ["seen.json"]
 
 
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):

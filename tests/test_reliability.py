@@ -634,9 +634,9 @@ def test_an_output_whose_lock_cannot_be_written_is_refused_naming_where_the_lock
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_damaged_training_run_of_an_experiment_fails_its_cell_once_naming_the_file(tmp_path, capsys):
-    """Running it again cannot repair a damaged stored run: the cell is not retried, and the line says
-    which file."""
+def test_a_damaged_training_run_of_an_experiment_fails_its_cell_naming_the_file(tmp_path, capsys):
+    """A damaged stored run is never trained on or tested as if whole: its cell fails (retried, as a
+    failed read may pass), and the line says which file."""
     from helpers import TINY_CONFIG, TINY_TABLES
 
     spec = tmp_path / "e.toml"
@@ -650,7 +650,7 @@ def test_a_damaged_training_run_of_an_experiment_fails_its_cell_once_naming_the_
     capsys.readouterr()
     assert main(argv) == 1
     failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
-    assert len(failed) == 1 and "(1 attempt(s))" in failed[0] and f"{policy} is corrupted" in failed[0]
+    assert len(failed) == 1 and f"{policy} is corrupted" in failed[0]
 
 
 def test_a_resume_whose_checkpoint_is_gone_is_refused_not_started_over(demos, finished, tmp_path, capsys):

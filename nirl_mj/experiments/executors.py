@@ -58,10 +58,10 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-PERMANENT = ("MethodError: ", "ModuleNotFoundError: ", "RunError: ", "DatasetError: ")
-"""A cell whose last error line holds one of these broke a method's rules (``experiments.plugins``),
-needs a package that is not installed, or met a stored run or dataset that is damaged or foreign
-(the message names the file): running it again cannot change that, so it is not retried."""
+PERMANENT = ("MethodError: ", "ModuleNotFoundError: ")
+"""A cell whose last error line holds one of these broke a method's rules (``experiments.plugins``) or
+needs a package that is not installed: running it again cannot change that, so it is not retried. (A
+stored run or dataset found damaged is retried: the same errors wrap a failed read, which may pass.)"""
 
 
 class ExecutorError(RuntimeError):

@@ -21,8 +21,9 @@ types (docs/EXTENDING.md):
   physics error), None unless ``reads`` holds ``demonstrations``; ``make_env()`` a Gymnasium
   environment on the run's training arenas, refused unless ``reads`` holds ``episode_end``;
   ``budget`` the decisions it may drive in all its environments together; ``workdir`` a directory of
-  its own, emptied before every attempt (each trains from scratch); ``policy(observation) -> action``
-  in 0..5, a function of that observation alone (an error it raises is a :class:`MethodError`).
+  its own, shared by every cell that trains the method for the run and never emptied (a method must
+  not resume from it: each attempt trains from scratch on its whole budget); ``policy(observation) ->
+  action`` in 0..5, a function of that observation alone (an error it raises is a :class:`MethodError`).
 
 The protocol keeps the rest (for a method that plays by the interface: one that reaches past the
 wrapper, ``env.unwrapped``, is not stopped): the environments draw their arenas from the run's training stream
@@ -38,7 +39,6 @@ from __future__ import annotations
 import functools
 import inspect
 import os
-import shutil
 import sys
 from collections.abc import Callable
 from importlib import metadata
@@ -286,6 +286,8 @@ def checked_policy(name: str, policy: Any, example: np.ndarray) -> Callable[[np.
         phi = np.asarray(phi, np.float32)
         try:
             answer = np.asarray(policy(phi))
+        except (MemoryError, OSError):
+            raise  # what another attempt may not meet again, as train's
         except Exception as exc:  # the method's own error: its seeded cell would fail again (not retried)
             raise MethodError(f"method {name!r}: its policy raised {type(exc).__name__}: {exc}; its "
                               "traceback is in the failure's record") from exc  # fmt: skip
@@ -318,10 +320,9 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     demos = demonstration_arrays(trajectories)
     budget = _Budget(job.method.name, job.method.steps, job.seed, frozenset(job.test_seeds))
     workdir = Path(job.run_dir)
-    # The protocol's own directory (OUT/runs/NAME/SEED): every attempt trains from scratch, so what a
-    # failed one left there is cleared rather than read by the next (a resume past the budget).
-    shutil.rmtree(workdir, ignore_errors=True)
-    workdir.mkdir(parents=True)
+    # Not emptied: a sweep's grid cells (and a compare's strip) train the same (method, run) in it,
+    # possibly at the same time; a method keeps nothing there it would resume from (docs/EXTENDING.md)
+    workdir.mkdir(parents=True, exist_ok=True)
     made = []
 
     def make_env():

@@ -81,9 +81,9 @@ def open_output(out: str | Path, experiment: Experiment, record: bool = True) ->
         if differ and not grown:
             # a method changed (its settings, or its package's code once fixed): the other rows' cells
             # still hold, and the command that keeps them is the one to name
-            keep = (f"; to compute the changed methods beside the cells of the others, a compare takes "
-                    f"--out NEW --reuse {out}, a suite --out NEW --restore {out}"
-                    if any(d.startswith("methods (") for d in differ) else "")  # fmt: skip
+            flag = {"compare": "--reuse", "suite": "--restore"}.get(experiment.kind)
+            keep = (f"; to compute the changed methods beside the cells of the others: --out NEW {flag} {out}"
+                    if flag and any(d.startswith("methods (") for d in differ) else "")  # fmt: skip
             raise ExperimentError(
                 f"{out} holds another experiment (it differs in: {', '.join(differ)}); choose another --out, "
                 "or rerun it with the same spec and flags to resume it (methods may be added, if the "

@@ -485,12 +485,12 @@ def train_rl(
             if selection == "training_success":
                 record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
             record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
-            # the model (and discriminator) right before the record, after the scoring (seconds of
-            # validation episodes): a kill between them leaves a model ahead of its record, refused
-            # by a resume (:func:`_resumed_model`), and the window is a few file writes wide
+            # the model, then the discriminator, right before the record, after the scoring (seconds
+            # of validation episodes): a kill after the model's write leaves it ahead of its record,
+            # which a resume refuses (:func:`_resumed_model`); the window is a few file writes wide
+            run.write_model(model.save)
             if adversarial:
                 adv.save_discriminator(run, reward)
-            run.write_model(model.save)
             run.write_record(record)
             if replaced:
                 run.file(replaced).unlink(missing_ok=True)
@@ -512,7 +512,8 @@ def _resumed_model(cls, run: RunDir, venv, steps_done: int):
     if int(model.num_timesteps) != steps_done:
         raise RunError(f"{run}: its model holds {int(model.num_timesteps)} decisions but its record "
                        f"{steps_done} (the process was stopped between the two writes); it cannot "
-                       "resume: train it again (--overwrite, or a new --out)")  # fmt: skip
+                       "resume: train it again (nirl-mj rl --overwrite or a new --out; in an "
+                       f"experiment, move {run} aside and run it again)")  # fmt: skip
     return model
 
 
