@@ -160,12 +160,16 @@ def _episode_file(episode: int) -> str:
 
 
 def _kept_folder(folder: Path, task: TaskSpec, expert: ExpertConfig, seed: int) -> Path:
-    """``folder`` for the collection (task, expert, seed): kept if it holds that collection's episodes,
-    emptied if another's."""
+    """``folder`` for the collection (task, expert, seed), recorded by this code (a digest of
+    nirl_mj's Python sources): kept if it holds that collection's episodes, emptied if another's."""
     import hashlib
     import json
 
-    identity = hashlib.sha256(repr((task, expert, seed)).encode()).hexdigest()
+    digest = hashlib.sha256(repr((task, expert, seed)).encode())
+    package = Path(__file__).resolve().parents[1]
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
+    identity = digest.hexdigest()
     marker = folder / "collection.json"
     try:
         same = json.loads(marker.read_text())["identity"] == identity
