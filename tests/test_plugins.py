@@ -112,6 +112,18 @@ class Breaks(Still):
         return policy
 
 
+class Locked(Still):
+    """Records whether its workdir was locked while it trained."""
+
+    def train(self, demonstrations, make_env, budget, seed, workdir):
+        import json, os
+
+        lock = os.path.join(os.path.dirname(workdir), "." + os.path.basename(workdir) + ".lock")
+        with open(os.path.join(workdir, "locked.json"), "w") as f:
+            json.dump(os.path.exists(lock), f)
+        return super().train(demonstrations, make_env, budget, seed, workdir)
+
+
 class Raiser(Still):
     """Its own error mid-training (``demonstrations`` is None: it did not declare them)."""
 
@@ -157,6 +169,7 @@ def installed(tmp_path, monkeypatch):
     (info / "entry_points.txt").write_text(
         "[nirl_mj.methods]\nWalker = walker_method:Walker\nSilent = walker_method:Silent\n"
         "Still = walker_method:Still\nRaiser = walker_method:Raiser\nBreaks = walker_method:Breaks\n"
+        "Locked = walker_method:Locked\n"
         "BadSignature = walker_method:BadSignature\nPicky = walker_method:Picky\n"
         "StillOf = walker_method:still_of\nSTILL = walker_method:STILL\n"
     )
@@ -279,6 +292,14 @@ def test_a_policy_that_raises_in_the_tests_fails_once_naming_the_method(installe
     failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
     assert "method 'Breaks': its policy raised ValueError: policy broke at test time" in failed[0]
+
+
+def test_an_installed_method_trains_holding_its_workdirs_lock(installed, tmp_path):
+    """A sweep trains a (method, run) once per grid cell in one workdir: one training at a time."""
+    assert main(compare(spec(tmp_path, '["Locked"]'), tmp_path / "out", "--runs", "1")) == 0
+    (locked,) = (tmp_path / "out" / "runs" / "Locked").glob("*/locked.json")
+    assert json.loads(locked.read_text()) is True
+    assert not list((tmp_path / "out" / "runs" / "Locked").glob(".*.lock"))  # released
 
 
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):

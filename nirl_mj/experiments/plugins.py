@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from nirl_mj.data.lock import DirectoryLock
 from nirl_mj.sim.spec import SpecError
 
 GROUP = "nirl_mj.methods"
@@ -321,7 +322,7 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
     budget = _Budget(job.method.name, job.method.steps, job.seed, frozenset(job.test_seeds))
     workdir = Path(job.run_dir)
     # Not emptied: a sweep's grid cells (and a compare's strip) train the same (method, run) in it,
-    # possibly at the same time; a method keeps nothing there it would resume from (docs/EXTENDING.md)
+    # one after the other (the lock below); a method keeps nothing there to resume from (EXTENDING.md)
     workdir.mkdir(parents=True, exist_ok=True)
     made = []
 
@@ -343,9 +344,12 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
         return made[-1]
 
     given = demos if "demonstrations" in reads else None
+    # one training at a time in the workdir: a sweep's grid cells of one (method, run) wait their turn
+    lock = DirectoryLock(workdir, f"training of method {job.method.name}", wait=True)
     try:
-        policy = method.train(demonstrations=given, make_env=make_env, budget=job.method.steps, seed=job.seed,
-                              workdir=str(workdir))  # fmt: skip
+        with lock:
+            policy = method.train(demonstrations=given, make_env=make_env, budget=job.method.steps,
+                                  seed=job.seed, workdir=str(workdir))  # fmt: skip
     except (MethodError, MemoryError, OSError, ModuleNotFoundError):
         raise  # the protocol's refusals, and what another attempt may not meet again, as they are
     except Exception as exc:
