@@ -585,6 +585,7 @@ def test_the_leaderboard_names_a_method_without_runs_at_a_point():
     ten, thirty = table.split("## demonstrations = 30")
     assert "No finished run" not in ten and "No finished run here: NIRL." in thirty
     assert "k of n" not in table
+    assert "| 1 | NIRL |" in ten and "| 1 | BC |" in ten  # equal averages: one rank
     # a method of the experiments that finished no run at all (every cell failed) is named too
     table = markdown(summary, {"NIRL": "a", "BC": "a"}, {"NIRL": None, "BC": None, "Mine": None})
     ten, thirty = table.split("## demonstrations = 30")

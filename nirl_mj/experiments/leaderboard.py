@@ -186,7 +186,9 @@ def markdown(summary: list[dict], source: dict[str, list[str]], reads: dict[str,
             "|---|---|---|---|---|---|---|---|",
         ]
         here = [p for p in summary if (p["axis"], p["value"]) == (axis, value)]
-        for rank, p in enumerate(here, start=1):
+        for p in here:
+            # equal averages share a rank (1, 2, 2, 4): the order among them says nothing
+            rank = next(i for i, q in enumerate(here, start=1) if q["avg"] == p["avg"])
             ci = p.get("ci") or [None, None]
             band = f" [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]" if ci[0] is not None else ""
             sct = f"{p['sct']:.2f}" if p.get("sct") is not None else "-"
