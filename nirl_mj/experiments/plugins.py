@@ -344,10 +344,8 @@ def train_plugin(job) -> tuple[Callable[[np.ndarray], int], list[int]]:
         return made[-1]
 
     given = demos if "demonstrations" in reads else None
-    # one training at a time in the workdir: a sweep's grid cells of one (method, run) wait their turn
-    lock = DirectoryLock(workdir, f"training of method {job.method.name}", wait=True)
     try:
-        with lock:
+        with DirectoryLock(workdir, f"training of method {job.method.name}", wait=True):
             policy = method.train(demonstrations=given, make_env=make_env, budget=job.method.steps,
                                   seed=job.seed, workdir=str(workdir))  # fmt: skip
     except (MethodError, MemoryError, OSError, ModuleNotFoundError):
