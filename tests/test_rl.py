@@ -354,6 +354,12 @@ def test_a_run_stopped_while_a_checkpoint_is_scored_resumes_from_the_model_its_r
     (run / "run.json").write_text(json.dumps({**record, "steps_done": 1024}))
     with pytest.raises(RunError, match=f"its model holds {done} decisions but its record 1024"):
         rl.train_rl(run, OPEN, "ppo", 4096, resume=True, **kw)
+    # and where the record says the budget was reached (a checkpoint inside PPO's last rollout): not
+    # taken as finished either, by a resume or by an experiment's cell
+    with pytest.raises(RunError, match=f"its model holds {done} decisions but its record 1024"):
+        rl.train_rl(run, OPEN, "ppo", 1024, resume=True, **kw)
+    with pytest.raises(RunError, match=f"its model holds {done} decisions but its record 1024"):
+        rl.ensure_rl_trained(run, OPEN, "ppo", 1024, 0, selection="validation_success")
 
 
 def test_a_saved_model_drives_the_documented_features_environment_through_its_loader(tmp_path):

@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -409,6 +410,8 @@ def train_rl(
         # a resume may train on to a larger total
         record = {**saved, "steps": steps, "reads": record["reads"]}
         if record["steps_done"] >= steps:
+            if run.file(MODEL_FILE).is_file():
+                _check_model_matches(run, record["steps_done"])
             return record
     elif not run.is_empty() and not overwrite:
         raise RunError(f"{run} exists and is not empty; pass --resume to continue it, --overwrite to "
@@ -505,16 +508,27 @@ def train_rl(
 
 
 def _resumed_model(cls, run: RunDir, venv, steps_done: int):
-    """The run's saved model, refused unless it is the one its record describes: a process killed
-    between writing the model and the record leaves a model of more decisions whose arenas, scores
-    and outcomes the record does not hold (training on from it would train more than asked)."""
-    model = cls.load(run.model_file(), env=venv, device="cpu")
-    if int(model.num_timesteps) != steps_done:
-        raise RunError(f"{run}: its model holds {int(model.num_timesteps)} decisions but its record "
-                       f"{steps_done} (the process was stopped between the two writes); it cannot "
-                       "resume: train it again (nirl-mj rl --overwrite or a new --out; in an "
-                       f"experiment, move {run} aside and run it again)")  # fmt: skip
-    return model
+    """The run's saved model, refused unless it is the one its record describes
+    (:func:`_check_model_matches`)."""
+    _check_model_matches(run, steps_done)
+    return cls.load(run.model_file(), env=venv, device="cpu")
+
+
+def _check_model_matches(run: RunDir, steps_done: int) -> None:
+    """Refuses a saved model of other decisions than its record's ``steps_done``: a process killed
+    between writing the model and the record leaves a model whose arenas, scores and outcomes the
+    record does not hold (training on from it would train more than asked). Read from the archive's
+    ``data`` entry, without torch; an archive that cannot be read is left to the loader's error."""
+    try:
+        with zipfile.ZipFile(run.model_file()) as archive:
+            saved = int(json.loads(archive.read("data"))["num_timesteps"])
+    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile):
+        return
+    if saved != steps_done:
+        raise RunError(f"{run}: its model holds {saved} decisions but its record {steps_done} (the process "
+                       "was stopped between the two writes); it cannot be used: train it again (nirl-mj rl "
+                       f"--overwrite or a new --out; in an experiment, move {run} aside and run it "
+                       "again)")  # fmt: skip
 
 
 def _demos_name(demos: str | os.PathLike) -> str:
@@ -579,6 +593,7 @@ def ensure_rl_trained(
     if run.is_run:
         record = run.read_record()
         if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
+            _check_model_matches(run, record["steps_done"])
             return record
     return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos, selection=selection,
                     envs=envs, changes=changes, train_drive=train_drive)  # fmt: skip
