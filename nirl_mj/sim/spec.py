@@ -311,7 +311,8 @@ def _check_object(obj: Any, where: str) -> None:
 
 def _over(value: float, limit: str, where: str, what: str) -> None:
     if value > LIMITS[limit]:
-        raise SpecError(f"{where} = {value:g}: at most {LIMITS[limit]:g} {what} (docs/TASKS.md, Limits)")
+        unit = f" {what}" if what else ""
+        raise SpecError(f"{where} = {value:g}: at most {LIMITS[limit]:g}{unit} (docs/TASKS.md, Limits)")
 
 
 def _check_arena(obj: ArenaSpec, where: str) -> None:

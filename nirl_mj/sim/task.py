@@ -69,6 +69,7 @@ class NavigationTask(composer.Task):
 
     def __init__(self, spec: TaskSpec) -> None:
         self._spec = spec
+        self.physics_error = ""  # why the last episode ended in a physics error (none yet)
         control = spec.control
         self._arena = NavigationArena(spec.arena)
         self._robot = Robotino(fidelity=spec.robot.drive, rays_per_sensor=spec.robot.rays_per_sensor)
