@@ -184,6 +184,11 @@ def spec(tmp_path: Path, methods: str, extra: str = "") -> Path:
     return path
 
 
+def failed_lines(capsys) -> list[str]:
+    """The FAILED lines a comparison printed (one per failed cell)."""
+    return [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+
+
 def compare(path: Path, out: Path, *extra: str) -> list[str]:
     return ["compare", "--task", str(path), "--out", str(out), "--executor", "serial", "--quiet", *extra]
 
@@ -254,7 +259,7 @@ def test_a_method_that_breaks_a_rule_fails_once_with_one_line_naming_it(
     settings, message = settings.replace("TEST", str(test_arena)), message.replace("TEST", str(test_arena))
     path = spec(tmp_path, '["Walker"]', f"[method.Walker]\nsteps = 200\nsettings = {settings}\n")
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    failed = failed_lines(capsys)
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0] and message in failed[0]
 
 
@@ -270,7 +275,7 @@ def test_without_gymnasium_a_method_that_never_drives_runs_and_one_that_drives_i
         monkeypatch.delitem(sys.modules, module)
     path = spec(tmp_path, '["Still", "Walker"]')
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    failed = failed_lines(capsys)
     assert len(failed) == 1 and "Walker" in failed[0] and "(1 attempt(s))" in failed[0]
     assert "method 'Walker' drives the robot: its environments are Gymnasium's; install the extra " \
            "nirl-mj[gym]" in failed[0]  # fmt: skip
@@ -280,7 +285,7 @@ def test_without_gymnasium_a_method_that_never_drives_runs_and_one_that_drives_i
 def test_a_policy_that_answers_out_of_range_later_fails_once_naming_it(installed, tmp_path, capsys):
     path = spec(tmp_path, '["Still"]', "[method.Still]\nsettings = { answer = 7, after = 3 }\n")
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    failed = failed_lines(capsys)
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
     assert "method 'Still': its policy answered an observation of shape (16,) with array(7)" in failed[0]
 
@@ -289,7 +294,7 @@ def test_a_policy_that_raises_in_the_tests_fails_once_naming_the_method(installe
     """Its cell is seeded: another attempt would train and raise again, so none is made."""
     path = spec(tmp_path, '["Breaks"]', "[method.Breaks]\nsettings = { after = 3 }\n")
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    failed = failed_lines(capsys)
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
     assert "method 'Breaks': its policy raised ValueError: policy broke at test time" in failed[0]
 
@@ -355,7 +360,7 @@ def test_a_method_that_would_run_as_something_else_is_refused_before_anything_ru
 def test_a_methods_own_error_fails_its_cell_once_with_its_traceback(installed, tmp_path, capsys):
     path = spec(tmp_path, '["Raiser", "rule"]')
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = [line for line in capsys.readouterr().err.splitlines() if line.startswith("FAILED")]
+    failed = failed_lines(capsys)
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
     assert "method 'Raiser': train() raised TypeError: 'NoneType' object is not subscriptable " \
            "(demonstrations=None: they are not in its reads)" in failed[0]  # fmt: skip
