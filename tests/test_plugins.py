@@ -282,29 +282,24 @@ def test_without_gymnasium_a_method_that_never_drives_runs_and_one_that_drives_i
     assert json.loads((tmp_path / "out" / "cells" / "Still-run000.json").read_text())["result"]["tests"] == 2
 
 
-def test_a_policy_that_answers_out_of_range_later_fails_once_naming_it(installed, tmp_path, capsys):
-    path = spec(tmp_path, '["Still"]', "[method.Still]\nsettings = { answer = 7, after = 3 }\n")
+@pytest.mark.parametrize(
+    ("method", "settings", "message"),
+    [
+        ("Still", "{ answer = 7, after = 3 }",
+         "method 'Still': its policy answered an observation of shape (16,) with array(7)"),
+        # its cell is seeded: another attempt would train and raise again, so none is made
+        ("Breaks", "{ after = 3 }",
+         "method 'Breaks': its policy raised ValueError: policy broke at test time"),
+    ],
+)  # fmt: skip
+def test_a_policy_that_answers_out_of_range_or_raises_later_fails_once_naming_it(
+    installed, tmp_path, capsys, method, settings, message
+):
+    path = spec(tmp_path, f'["{method}"]', f"[method.{method}]\nsettings = {settings}\n")
     assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
     failed = failed_lines(capsys)
     assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
-    assert "method 'Still': its policy answered an observation of shape (16,) with array(7)" in failed[0]
-
-
-def test_a_policy_that_raises_in_the_tests_fails_once_naming_the_method(installed, tmp_path, capsys):
-    """Its cell is seeded: another attempt would train and raise again, so none is made."""
-    path = spec(tmp_path, '["Breaks"]', "[method.Breaks]\nsettings = { after = 3 }\n")
-    assert main(compare(path, tmp_path / "out", "--runs", "1")) == 1
-    failed = failed_lines(capsys)
-    assert len(failed) == 1 and "(1 attempt(s))" in failed[0]
-    assert "method 'Breaks': its policy raised ValueError: policy broke at test time" in failed[0]
-
-
-def test_an_installed_method_trains_holding_its_workdirs_lock(installed, tmp_path):
-    """A sweep trains a (method, run) once per grid cell in one workdir: one training at a time."""
-    assert main(compare(spec(tmp_path, '["Locked"]'), tmp_path / "out", "--runs", "1")) == 0
-    (locked,) = (tmp_path / "out" / "runs" / "Locked").glob("*/locked.json")
-    assert json.loads(locked.read_text()) is True
-    assert not list((tmp_path / "out" / "runs" / "Locked").glob(".*.lock"))  # released
+    assert message in failed[0]
 
 
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):

@@ -436,7 +436,8 @@ def train_rl(
             callbacks.append(adv.training_callback(venv, reward))
         settings = _model_settings(config)
         if resume and run.file(MODEL_FILE).is_file():
-            model = _resumed_model(cls, run, venv, record["steps_done"])
+            _check_model_matches(run, record["steps_done"])
+            model = cls.load(run.model_file(), env=venv, device="cpu")
         else:
             model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
         # a logger that writes nowhere: without one, each learn() makes an empty tempdir/SB3-<time> folder
@@ -453,8 +454,9 @@ def train_rl(
             scorer = _validation_scorer(model, record, task, seed)
 
         def checkpoint(outcomes: list[bool]) -> None:
-            """Saves the model (and the discriminator); scores it and keeps it if it is the best yet.
-            ``outcomes``: the last training episodes ended (at most :data:`SUCCESS_WINDOW`)."""
+            """Scores the model, keeps it if it is the best yet, then saves it (and the discriminator)
+            and the record. ``outcomes``: the last training episodes ended (at most
+            :data:`SUCCESS_WINDOW`)."""
             steps_now = int(model.num_timesteps)
             best = record.get("selected")
             score, driven = None, None
@@ -490,7 +492,7 @@ def train_rl(
             record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
             # the model, then the discriminator, right before the record, after the scoring (seconds
             # of validation episodes): a kill after the model's write leaves it ahead of its record,
-            # which a resume refuses (:func:`_resumed_model`); the window is a few file writes wide
+            # which a resume refuses (:func:`_check_model_matches`); the window is a few file writes wide
             run.write_model(model.save)
             if adversarial:
                 adv.save_discriminator(run, reward)
@@ -505,13 +507,6 @@ def train_rl(
     finally:
         venv.close()
     return record
-
-
-def _resumed_model(cls, run: RunDir, venv, steps_done: int):
-    """The run's saved model, refused unless it is the one its record describes
-    (:func:`_check_model_matches`)."""
-    _check_model_matches(run, steps_done)
-    return cls.load(run.model_file(), env=venv, device="cpu")
 
 
 def _check_model_matches(run: RunDir, steps_done: int) -> None:
