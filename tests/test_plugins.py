@@ -302,6 +302,14 @@ def test_a_policy_that_answers_out_of_range_or_raises_later_fails_once_naming_it
     assert message in failed[0]
 
 
+def test_an_installed_method_trains_holding_its_workdirs_lock(installed, tmp_path):
+    """A sweep trains a (method, run) once per grid cell in one workdir: one training at a time."""
+    assert main(compare(spec(tmp_path, '["Locked"]'), tmp_path / "out", "--runs", "1")) == 0
+    (locked,) = (tmp_path / "out" / "runs" / "Locked").glob("*/locked.json")
+    assert json.loads(locked.read_text()) is True
+    assert not list((tmp_path / "out" / "runs" / "Locked").glob(".*.lock"))  # released
+
+
 def test_a_method_that_declares_nothing_is_refused_before_anything_runs(installed, tmp_path):
     with pytest.raises(ExperimentError, match="method 'Silent': declare `reads`"):
         from_dict({"kind": "compare", "methods": ["Silent"]}, "e.toml")
