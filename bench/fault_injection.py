@@ -1,16 +1,18 @@
-"""Fault injection: kill -9 at random moments of train, compare, demos, export and run, then resume.
+"""Fault injection: kill -9 at random moments of train, rl, compare, demos, export and run, then resume.
 
 For each command, a reference run to completion; then ``--kills`` times: the same command in a
 fresh output, killed (SIGKILL: no clean-up runs) after a random delay drawn from the reference's
 duration, then run again as a user would (``--resume`` where the command takes it; ``demos`` and
 ``export`` with ``--overwrite``; else the same command); its results must equal the reference's
 bit for bit where compared, timing fields aside: a run's results.json and NIRL policy, a
-comparison's cell records, a training's policy, checkpoint and metrics, a dataset's arrays, an
-export's episodes, steps and actions. Tiny settings (a 24 m arena, the planar drive), so a kill
+comparison's cell records, a training's policy, checkpoint and metrics, an RL run's record and its
+models' parameters (PPO on the task's reward, a checkpoint every 5,000 decisions, chosen on
+validation arenas: a resume replays it from its seed), a dataset's arrays, an export's episodes,
+steps and actions. Tiny settings (a 24 m arena, the planar drive), so a kill
 lands anywhere: in start-up, in the middle of a write, or after the end. Prints one line per kill
 and a summary; exit status 1 if any resume lost or changed anything.
 
-    python bench/fault_injection.py [--kills 10] [--seed 0]      (5 commands x kills in all)
+    python bench/fault_injection.py [--kills 10] [--seed 0]      (6 commands x kills in all)
 """
 
 from __future__ import annotations
@@ -81,6 +83,16 @@ def train_result(out: Path) -> dict:
             "selection": json.loads((out / "run.json").read_text())["selection"]}  # fmt: skip
 
 
+def rl_result(out: Path) -> dict:
+    import zipfile
+
+    models = {}
+    for path in sorted(out.glob("*.zip")):  # the parameters: a zip's own bytes hold its write time
+        with zipfile.ZipFile(path) as archive:
+            models[path.name] = hashlib.sha256(archive.read("policy.pth")).hexdigest()
+    return {"record": json.loads((out / "run.json").read_text()), **models}
+
+
 def compare_result(out: Path) -> dict:
     return {p.name: without_times(json.loads(p.read_text())) for p in sorted((out / "cells").glob("*.json"))}
 
@@ -127,6 +139,19 @@ def commands(
             *TASK,
             *LEARNER,
         ],  # fmt: skip
+        "rl": lambda o: [
+            *nirl,
+            "rl",
+            "--steps",
+            "11000",
+            "--envs",
+            "2",
+            "--selection",
+            "validation_success",
+            "--out",
+            str(o),
+            *TASK,
+        ],  # fmt: skip
         "compare": lambda o: [*nirl, "compare", "--task", str(spec), "--out", str(o), "--workers", "2"],
         "demos": lambda o: [
             *nirl,
@@ -165,19 +190,24 @@ def commands(
             return [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume"]
         return first["train"](o)
 
-    again = {"train": train_again, "compare": first["compare"],
+    def rl_again(o: Path) -> list[str]:
+        if (o / "run.json").is_file():
+            return [*nirl, "rl", "--out", str(o), "--resume"]
+        return first["rl"](o)
+
+    again = {"train": train_again, "rl": rl_again, "compare": first["compare"],
              "demos": lambda o: [*first["demos"](o), "--overwrite"],
              "run": lambda o: [*first["run"](o), "--resume"],
              "export": lambda o: [*first["export"](o), "--overwrite"]}  # fmt: skip
-    results = {"train": train_result, "compare": compare_result, "demos": demos_result, "run": run_result,
-               "export": export_result}  # fmt: skip
+    results = {"train": train_result, "rl": rl_result, "compare": compare_result, "demos": demos_result,
+               "run": run_result, "export": export_result}  # fmt: skip
     quiet = lambda call: lambda o: [*call(o), "--quiet"]  # noqa: E731
     return {name: (quiet(first[name]), quiet(again[name]), results[name]) for name in first}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--kills", type=int, default=10, help="kills per command (default 10: 50 in all)")
+    parser.add_argument("--kills", type=int, default=10, help="kills per command (default 10: 60 in all)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--only", default=None, help="comma-separated commands")
     args = parser.parse_args()

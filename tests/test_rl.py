@@ -346,9 +346,9 @@ def test_a_run_stopped_while_a_checkpoint_is_scored_resumes_from_the_model_its_r
     saved = sb3.PPO.load(run / "model.zip", device="cpu")
     assert record["steps_done"] == calls[0] == int(saved.num_timesteps) < calls[1]
     monkeypatch.undo()
-    # on from the checkpoint: whole PPO rollouts of 1,024 decisions after it
+    # replayed from the seed to the checkpoint, then on to the budget, as an uninterrupted run
     done = rl.train_rl(run, OPEN, "ppo", 2048, resume=True, **kw)["steps_done"]
-    assert done == calls[0] + 2048
+    assert done == 2048
     # a record behind its model: refused, naming both
     record = json.loads((run / "run.json").read_text())
     (run / "run.json").write_text(json.dumps({**record, "steps_done": 1024}))
@@ -360,6 +360,103 @@ def test_a_run_stopped_while_a_checkpoint_is_scored_resumes_from_the_model_its_r
         rl.train_rl(run, OPEN, "ppo", 1024, resume=True, **kw)
     with pytest.raises(RunError, match=f"its model holds {done} decisions but its record 1024"):
         rl.ensure_rl_trained(run, OPEN, "ppo", 1024, 0, selection="validation_success")
+
+
+def _stopped_at(decisions: int):
+    """An ``on_steps`` that stops training (as Ctrl-C would) once it has counted ``decisions``."""
+    seen = [0]
+
+    def on_steps(n: int, stats: dict) -> None:
+        seen[0] += n
+        if seen[0] >= decisions:
+            raise KeyboardInterrupt
+
+    return on_steps
+
+
+def _run_files(run) -> dict:
+    """A run's record and the bytes of its models' parameters (a zip's own bytes hold its write time)."""
+    import zipfile
+
+    out = {"record": json.loads((run / "run.json").read_text())}
+    for path in sorted(run.glob("*.zip")):
+        with zipfile.ZipFile(path) as archive:
+            out[path.name] = {n: archive.read(n) for n in archive.namelist() if n.endswith(".pth")}
+    for path in sorted(run.glob("*.npz")):
+        out[path.name] = path.read_bytes()
+    return out
+
+
+@pytest.mark.parametrize(
+    ("algo", "selection", "envs", "stop"),
+    [("ppo", "validation_success", 2, 1300), ("dqn", "training_success", 1, 700),
+     ("gail", "demo_balanced", 2, 900)],
+)  # fmt: skip
+def test_a_stopped_run_resumes_to_the_uninterrupted_run_bit_for_bit(
+    tmp_path, monkeypatch, algo, selection, envs, stop
+):
+    """A resume replays the run from its seed to its last checkpoint (the episodes in progress, PPO's
+    rollout and DQN's replay buffer are not saved) and trains on: every file ends as an uninterrupted
+    run's, though the stop fell inside a rollout. The replay drives no validation episode again."""
+    from helpers import OPEN
+
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments import rl
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+
+    kw = {"seed": 3, "checkpoint_every": 512, "selection": selection, "envs": envs}
+    if algo == "gail":
+        kw["demos"] = tmp_path / "demos.npz"
+        save_dataset(kw["demos"], collect(OPEN, ExpertConfig("rule"), episodes=2, seed=0))
+    rl.train_rl(tmp_path / "whole", OPEN, algo, 2048, **kw)
+    run = tmp_path / "stopped"
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(run, OPEN, algo, 2048, on_steps=_stopped_at(stop), **kw)
+    stopped_at = json.loads((run / "run.json").read_text())["steps_done"]
+    assert 0 < stopped_at < stop  # a checkpoint, then a stop before the next one
+    validated = []
+    real_scorer = rl._validation_scorer
+
+    def counting_scorer(model, record, task, seed):
+        score = real_scorer(model, record, task, seed)
+
+        def counted(best):
+            validated.append(int(model.num_timesteps))
+            return score(best)
+
+        return counted
+
+    monkeypatch.setattr(rl, "_validation_scorer", counting_scorer)
+    reported = []
+    rl.train_rl(run, OPEN, algo, 2048, resume=True, on_steps=lambda n, stats: reported.append(n), **kw)
+    assert _run_files(run) == _run_files(tmp_path / "whole")
+    assert "inexact_resumes" not in _run_files(run)["record"]
+    if selection == "validation_success":
+        assert validated and min(validated) > stopped_at  # the recorded scores were kept, not driven again
+    # the progress counts only the decisions after the checkpoint (the caller's count starts there)
+    assert sum(reported) == _run_files(run)["record"]["steps_done"] - stopped_at
+
+
+def test_a_resume_that_cannot_replay_its_checkpoint_trains_on_and_says_so(tmp_path):
+    """A saved model that the replay does not reach (another machine's arithmetic, or a run resumed
+    before replays existed: here another seed's model at the same checkpoint) is recorded, and the
+    run trains on to its budget from the replay."""
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+
+    kw = {"checkpoint_every": 512, "selection": "training_success"}
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(tmp_path / "run", OPEN, "ppo", 2048, seed=0, on_steps=_stopped_at(1100), **kw)
+    done = json.loads((tmp_path / "run" / "run.json").read_text())["steps_done"]
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(tmp_path / "other", OPEN, "ppo", 2048, seed=1, on_steps=_stopped_at(1100), **kw)
+    shutil.copy(
+        tmp_path / "other" / "model.zip", tmp_path / "run" / "model.zip"
+    )  # same decisions, other weights
+    record = rl.train_rl(tmp_path / "run", OPEN, "ppo", 2048, seed=0, resume=True, **kw)
+    assert record["inexact_resumes"] == [done] and record["steps_done"] == 2048
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["inexact_resumes"] == [done]
 
 
 def test_a_saved_model_drives_the_documented_features_environment_through_its_loader(tmp_path):

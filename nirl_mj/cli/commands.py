@@ -408,7 +408,10 @@ def cmd_rl(args: argparse.Namespace) -> int:
 
         def progress(n: int, stats: dict) -> None:
             bar.update(n)
-            bar.set_postfix(episodes=stats["episodes"], succ=f"{stats['success']:.2f}", refresh=False)
+            # a resume replays the run from its seed to its last checkpoint first (experiments.rl._replays)
+            shown = {"replaying": stats["replaying"]} if "replaying" in stats else {}
+            shown.update(episodes=stats["episodes"], succ=f"{stats['success']:.2f}")
+            bar.set_postfix(shown, refresh=False)
 
         record = train_rl(out.path, spec, args.algo, args.steps, args.seed, args.resume, on_steps=progress,
                           demos=args.demos, selection=args.selection, envs=args.envs,

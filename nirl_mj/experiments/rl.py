@@ -21,10 +21,12 @@ its settings, the task, seed and arenas, every checkpoint's selection score), ``
 (Stable-Baselines3's file, rewritten atomically at every checkpoint), the selected checkpoint
 ``selected-<decisions>.zip`` that the record names (:data:`SELECTIONS`), GAIL's and AIRL's
 ``discriminator.npz`` (the last checkpoint's: AIRL's reward maps show it, not the selected
-checkpoint's) and ``eval.json``. A resume continues from the last checkpoint with the arenas that
-follow, and the success window of ``training_success`` as it was; it is not bit-identical to an
-uninterrupted run (the episode in progress and PPO's rollout buffer are not saved). A run
-recorded before selection existed (no ``selection`` in its config) resumes as it was trained.
+checkpoint's) and ``eval.json``. A resume of a stopped run replays it from its seed to its last
+checkpoint, keeping the scores recorded there, and trains on: it ends bit for bit as the
+uninterrupted run (:func:`_replays`; the episodes in progress, PPO's rollout and DQN's replay buffer
+are in no file). A resume that trains on to a new total continues from the saved model, with the
+arenas that follow and the success window of ``training_success`` as it was. A run recorded before
+selection existed (no ``selection`` in its config) resumes as it was trained.
 
 Needs the optional extra ``nirl-mj[gym]``; imported only by the commands that train or load an
 RL run, so the core install does not need it.
@@ -397,6 +399,7 @@ def train_rl(
               if selection == "validation_success" else [],
               "train_seeds": [], "steps_done": 0, "reads": rl_reads(algo, selection)}  # fmt: skip
     record = json.loads(json.dumps(record))  # as read back from run.json (tuples become lists)
+    replay_to = 0  # a resume trains again from the seed up to it (:func:`_replays`)
     if resume:
         saved = run.read_record()
         if adversarial and _demos_name(saved.get("demos") or "") != record["demos"]:
@@ -407,11 +410,12 @@ def train_rl(
                 raise RunError(f"{run} was trained with another {key}; resume with the same options, "
                                "or train in a new --out")  # fmt: skip
         run.remove_leftovers()
+        if run.file(MODEL_FILE).is_file():
+            _check_model_matches(run, saved["steps_done"])
+        replay_to = _replays(saved, steps)
         # a resume may train on to a larger total
         record = {**saved, "steps": steps, "reads": record["reads"]}
         if record["steps_done"] >= steps:
-            if run.file(MODEL_FILE).is_file():
-                _check_model_matches(run, record["steps_done"])
             return record
     elif not run.is_empty() and not overwrite:
         raise RunError(f"{run} exists and is not empty; pass --resume to continue it, --overwrite to "
@@ -422,21 +426,23 @@ def train_rl(
         run.write_record(record)
 
     legacy = "selection" not in config
+    from_saved = resume and not replay_to
     train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
-    venv, arenas = _environment(train_task, seed, len(record["train_seeds"]), envs, legacy, config)
+    venv, arenas = _environment(
+        train_task, seed, len(record["train_seeds"]) if from_saved else 0, envs, legacy, config
+    )
     try:  # the environments are closed whatever fails after they start (a model that cannot load, ...)
         callbacks = []
         code, _ = observation_code(config)
         if adversarial:
             expert = adv.expert_transitions(trajectories, code, absorbing=adv.variant_of(algo).absorbing)
             reward = adv.AdversarialReward(algo, config["gamma"], expert, seed)
-            if resume and run.file(adv.DISCRIMINATOR_FILE).is_file():
+            if from_saved and run.file(adv.DISCRIMINATOR_FILE).is_file():
                 reward.load_state(adv.read_discriminator(run))
             venv = adv.reward_wrapper(venv, reward)
             callbacks.append(adv.training_callback(venv, reward))
         settings = _model_settings(config)
-        if resume and run.file(MODEL_FILE).is_file():
-            _check_model_matches(run, record["steps_done"])
+        if from_saved and run.file(MODEL_FILE).is_file():
             model = cls.load(run.model_file(), env=venv, device="cpu")
         else:
             model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **settings)
@@ -446,7 +452,7 @@ def train_rl(
         model.set_logger(Logger(folder=None, output_formats=[]))
         if adversarial:
             reward.policy = model.policy
-        done_before = list(record["train_seeds"])
+        done_before = list(record["train_seeds"]) if from_saved else []
         scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
         if selection == "demo_balanced":
             scorer = _demo_scorer(model, trajectories, code)
@@ -456,8 +462,14 @@ def train_rl(
         def checkpoint(outcomes: list[bool]) -> None:
             """Scores the model, keeps it if it is the best yet, then saves it (and the discriminator)
             and the record. ``outcomes``: the last training episodes ended (at most
-            :data:`SUCCESS_WINDOW`)."""
+            :data:`SUCCESS_WINDOW`). A replayed checkpoint is in the record already; at the last one
+            the replay is checked against the saved model (:func:`_same_as_saved`)."""
             steps_now = int(model.num_timesteps)
+            if steps_now <= replay_to:
+                if steps_now == replay_to and not _same_as_saved(run, model, reward if adversarial else None):
+                    # another machine's arithmetic, or a run resumed before replays existed: on from here
+                    record["inexact_resumes"] = [*record.get("inexact_resumes", []), replay_to]
+                return
             best = record.get("selected")
             score, driven = None, None
             if selection == "validation_success":
@@ -500,13 +512,61 @@ def train_rl(
             if replaced:
                 run.file(replaced).unlink(missing_ok=True)
 
-        progress = _Progress(checkpoint, checkpoint_every, on_steps, record.get("recent_outcomes", []))
+        def replaying(n: int, stats: dict) -> None:
+            """Progress in a replay: its decisions count as done already (the caller's count does)."""
+            now = int(model.num_timesteps)
+            on_steps(max(0, now - max(replay_to, now - n)),
+                     {**stats, "replaying": f"{now}/{replay_to}"} if now < replay_to else stats)  # fmt: skip
+
+        outcomes = record.get("recent_outcomes", []) if from_saved else []
+        progress = _Progress(
+            checkpoint, checkpoint_every, replaying if on_steps and replay_to else on_steps, outcomes
+        )
         callbacks.append(progress)
-        model.learn(steps - record["steps_done"], callback=callbacks, reset_num_timesteps=not resume)
+        model.learn(steps - record["steps_done"] if from_saved else steps, callback=callbacks,
+                    reset_num_timesteps=not from_saved)  # fmt: skip
         progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
     finally:
         venv.close()
     return record
+
+
+def _replays(record: dict, steps: int) -> int:
+    """The decisions a resume replays (0: none). A run stopped before its budget is trained again from
+    its seed up to its last checkpoint, keeping the scores its record holds (no validation episode is
+    driven again), and trains on from there: it ends bit for bit as an uninterrupted run would, which
+    no saved state gives (the episodes in progress, PPO's rollout, DQN's replay buffer, the
+    discriminator's optimiser are not saved); a stop costs the training up to it, not its result. A
+    run trained on to a new total (``steps`` other than the recorded budget) continues from its saved
+    model: no uninterrupted run would equal it, and so does a run recorded before selection existed."""
+    done = record.get("steps_done", 0)
+    legacy = "selection" not in record.get("config", {})  # resumes as it was trained
+    return done if 0 < done < steps == record.get("steps") and not legacy else 0
+
+
+def _same_as_saved(run: RunDir, model: Any, reward: Any) -> bool:
+    """Whether ``model`` and the discriminator ``reward`` (GAIL, AIRL; else None) equal the run's saved
+    ones bit for bit: the decisions counted, the parameters and the optimisers' state."""
+    import torch
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    def equal(a: Any, b: Any) -> bool:
+        if isinstance(a, dict):
+            return isinstance(b, dict) and a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
+        if isinstance(a, (list, tuple)):
+            return isinstance(b, (list, tuple)) and len(a) == len(b) and all(map(equal, a, b))
+        if isinstance(a, torch.Tensor | np.ndarray):
+            return type(a) is type(b) and a.shape == b.shape and bool((a == b).all())
+        return a == b
+
+    data, params, _ = load_from_zip_file(run.model_file(), device="cpu")
+    if data.get("num_timesteps") != model.num_timesteps or not equal(params, model.get_parameters()):
+        return False
+    if reward is None:
+        return True
+    from nirl_mj.experiments.adversarial import read_discriminator
+
+    return equal(read_discriminator(run), reward.state())
 
 
 def _check_model_matches(run: RunDir, steps_done: int) -> None:
