@@ -333,6 +333,11 @@ def test_intervals_match_hand_computation():
     s = summarise_runs(rows)
     summary = (s["avg"], s["best"], s["worst"], s["runs"], s["tests"])
     assert summary == pytest.approx((0.7333, 0.9, 0.6, 3, 30), abs=1e-4)
+    # the runs' sample sd: squared deviations from 11/15, (2/15)^2 + (1/6)^2 + (1/30)^2 = 42/900, over
+    # 3 - 1 runs: sqrt(21) / 30 = 0.152753
+    assert s["sd"] == pytest.approx(math.sqrt(21) / 30, rel=1e-12)
+    half = 4.3027 * math.sqrt(21) / 30 / math.sqrt(3)  # 0.37946: the upper bound 1.1128 clipped to 1
+    assert s["ci"] == pytest.approx([11 / 15 - half, 1.0], abs=1e-4)
     assert summarise_runs(rows[:1])["ci"] == [None, None]  # standard JSON, no NaN
 
 

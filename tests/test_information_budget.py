@@ -157,6 +157,32 @@ def test_every_built_in_loop_learner_is_blind_to_the_task_outcome(name):
         np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"{name}: {key}")
 
 
+def test_behaviour_cloning_is_blind_to_the_demonstrations_outcomes(monkeypatch):
+    """BC reads the demonstrations' phi(s) and actions only: with every demonstration's outcome swapped
+    (:func:`_scramble`; half arrivals, half collisions, so that keeping only arrivals would differ) it
+    trains the same network, bit for bit, and so acts alike."""
+    from nirl_mj.learn import bc, network
+
+    rng = np.random.default_rng(2)
+    demos = [random_trajectory(rng, 12, outcome) for outcome in ["target", "collision"] * 3]
+    scrambled = [_scramble(t, rng) for t in demos]
+    assert [t.outcome for t in scrambled] == ["collision", "target"] * 3
+    nets = []
+    greedy_policy = bc.greedy_policy
+
+    def kept(net, inputs):
+        nets.append(net)
+        return greedy_policy(net, inputs)
+
+    monkeypatch.setattr(bc, "greedy_policy", kept)
+    policies = [bc.behaviour_cloning(d, seed=4) for d in (demos, scrambled)]
+    (w1, w2), (s1, s2) = (tuple(network.get_weights(net).values()) for net in nets)
+    np.testing.assert_array_equal(w1, s1)
+    np.testing.assert_array_equal(w2, s2)
+    phi = random_trajectory(rng, 199, "timeout").features  # 200 states
+    assert [policies[0](p) for p in phi] == [policies[1](p) for p in phi]
+
+
 def test_a_trained_run_is_blind_to_its_episodes_outcomes_end_to_end(tmp_path, monkeypatch):
     """Through ``training.train`` (rollouts, selection, checkpoints, as a Table I cell trains): the
     default NIRL keeps the same iteration and weights when every episode's outcome is swapped (target
@@ -256,6 +282,17 @@ def test_absorbing_values_edge_cases():
     np.testing.assert_array_equal(
         absorbing_values(expert, np.array([_phi(detected=1)] * 2), "bearing"), [1, 1]
     )
+
+
+def test_a_learner_end_more_expert_like_than_the_experts_mean_is_worth_1_not_more():
+    """Expert ends: target detected, without and with danger 1; learner ends: target detected, and a
+    collision (danger 7). "extended" blocks b = [D/7 (7), V one-hot (9), I, U (7), 1]: w = mu_E - mu_pi
+    has D components 1/14 - 1/2 = -3/7, I component 1 - 1/2 = 1/2, the rest 0. Scores: the learner's
+    arrival 1/2, its collision 7 x (-3/7) = -3; the expert's mean 7 x (1/14)(-3/7) + 1/2 = 2/7. The
+    arrival's (1/2 + 3) / (2/7 + 3) = 49/46 is clipped to 1: no end is worth more than the expert's."""
+    expert = np.array([_phi(detected=1), _phi(danger=1, detected=1)])
+    learner = np.array([_phi(detected=1), _phi(danger=7)])
+    np.testing.assert_allclose(absorbing_values(expert, learner, "extended"), [1.0, 0.0])
 
 
 # -- selection without a task signal ---------------------------------------------------------------

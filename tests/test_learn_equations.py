@@ -254,6 +254,18 @@ def test_minibatch_epochs_deterministic_and_descending():
     assert _j(a, phi, actions, targets, 0.1) < before
 
 
+def test_minibatch_epochs_reports_the_pair_weighted_mean_of_its_minibatch_costs():
+    """10 pairs in minibatches of 4, 4 and 2: the last, smaller minibatch weighs 2/10, not 1/3."""
+    rng = np.random.default_rng(5)
+    phi = rng.uniform(0, 9, size=(10, 16))
+    actions = rng.integers(0, 6, size=10)
+    targets = rng.uniform(0, 1, size=10)
+    net = QNetwork(seed=1)
+    # step 0 leaves the net as it is: sum_b (n_b / 10) mean_b(cost) = mean over all 10 pairs of eq. 15
+    cost = minibatch_epochs(net, phi, actions, targets, 0.0, 0.0, 1, 4, np.random.default_rng(0))
+    assert cost == pytest.approx(_j(net, phi, actions, targets, 0.0), rel=1e-12)
+
+
 # --- eq. 3, 11: feature sums --------------------------------------------------------------------------------
 
 TRAJ_1 = np.array([[1.0, 0.0], [0.0, 2.0], [4.0, 4.0]])
@@ -420,6 +432,45 @@ def test_minimise_mmp_keeps_best_iterate():
     # J = -theta_1 + |theta|^2 / 2, minimum over the ball at [1, 0]: J = -1/2
     np.testing.assert_allclose(theta, [1.0, 0.0])
     assert value == pytest.approx(-0.5)
+
+
+def test_minimise_mmp_keeps_the_earliest_of_equally_good_iterates():
+    # J = max(theta_1, -theta_1) = |theta_1|: from [0.5, 0] (J 0.5, subgradient [1, 0]) a step of 1 goes
+    # to [-0.5, 0], J 0.5 too; the tie keeps theta0
+    learner = np.array([[[1.0, 0.0], [-1.0, 0.0]]])
+    theta, value = minimise_mmp(np.array([0.5, 0.0]), np.zeros((1, 2)), learner, np.zeros((1, 2)), 0.0,
+                                steps=1, step_size=1.0)  # fmt: skip
+    np.testing.assert_array_equal(theta, [0.5, 0.0])
+    assert value == 0.5
+
+
+@pytest.mark.parametrize("mix", [1.0, 0.5])
+def test_the_learners_future_mixes_its_own_mean_discounted_sum_with_the_experts_continuation(mix):
+    """Per-pair readings (occupancy matching): what follows a demonstrated pair on the learner's side is
+    future_mix x the learner's mean discounted sum over its rollouts' pairs (an empty rollout adds none)
+    plus (1 - future_mix) x the expert's continuation from the next demonstrated pair (0 after the last)."""
+    from nirl_mj.learn.config import LearnerConfig
+    from nirl_mj.learn.mmp import MaxMarginStep
+    from nirl_mj.learn.reward import pair_features
+
+    rng = np.random.default_rng(6)
+    demos = [random_trajectory(rng, n, "target") for n in (4, 3)]
+    rollouts = [random_trajectory(rng, n, "collision") for n in (3, 0, 2)]
+    config = LearnerConfig.preset("default", matching="occupancy", future_mix=mix)
+    kind, gamma = config.loop.reward_features, config.loop.gamma
+
+    def suffixes(t) -> np.ndarray:
+        """mu(s_i, a_i) = f(s_i, a_i) + gamma mu(s_i+1, a_i+1) along ``t``, and a zero row after its end."""
+        f = pair_features(t.features[:-1], t.actions, kind)
+        mu = np.zeros((len(f) + 1, f.shape[1]))
+        for i in reversed(range(len(f))):
+            mu[i] = f[i] + gamma * mu[i + 1]
+        return mu
+
+    own = np.concatenate([suffixes(t)[:-1] for t in rollouts]).mean(axis=0)  # over the 5 rollout pairs
+    expert_next = np.concatenate([suffixes(t)[1:] for t in demos])  # mu_E from the next pair, (7, D)
+    future = MaxMarginStep(config.loop, config.step, demos).learner_future(rollouts)
+    np.testing.assert_allclose(future, mix * own + (1 - mix) * expert_next, rtol=1e-12, atol=1e-12)
 
 
 # --- eq. 14: SARSA ----------------------------------------------------------------------------------------
