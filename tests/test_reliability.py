@@ -634,6 +634,50 @@ def test_an_output_whose_lock_cannot_be_written_is_refused_naming_where_the_lock
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_writer_that_waited_for_a_released_lock_holds_the_new_lock_file_so_a_third_is_refused(
+    tmp_path, monkeypatch
+):
+    """A releasing holder removes its lock file: a writer that was waiting (``wait=True``, as an
+    eval.json update does) then holds a removed file, and must lock the file there now; else a third
+    writer, which opens the new file, would write alongside it. (Locks of one process's threads
+    conflict as other processes' do: flock locks each open file.)"""
+    import fcntl
+    import threading
+
+    from nirl_mj.data.lock import DirectoryLock, LockedError
+
+    out = tmp_path / "out"
+    first = DirectoryLock(out).acquire()
+    waiting, failed = threading.Event(), []
+    flock = fcntl.flock
+
+    def spied_flock(fd, operation):
+        if operation == fcntl.LOCK_EX:  # the blocking wait behind the first writer: the second writer
+            waiting.set()  # holds the file the first removes, whether released before this call or in it
+        return flock(fd, operation)
+
+    def wait_for_it() -> None:
+        try:
+            second.acquire()
+        except BaseException as exc:  # reported below, not lost in the thread
+            failed.append(exc)
+        finally:
+            waiting.set()
+
+    monkeypatch.setattr(fcntl, "flock", spied_flock)
+    second = DirectoryLock(out, wait=True)
+    thread = threading.Thread(target=wait_for_it)
+    thread.start()
+    waiting.wait()
+    first.release()
+    thread.join()
+    monkeypatch.undo()
+    assert not failed and second.lock_file.is_file()
+    with pytest.raises(LockedError, match=f"being written by process {os.getpid()}"):
+        DirectoryLock(out).acquire()
+    second.release()
+
+
 def test_a_damaged_training_run_of_an_experiment_fails_its_cell_naming_the_file(tmp_path, capsys):
     """A damaged stored run is never trained on or tested as if whole: its cell fails (retried, as a
     failed read may pass), and the line says which file."""

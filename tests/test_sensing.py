@@ -77,6 +77,15 @@ def test_known_obstacle_at_known_distance() -> None:
     assert cast.ranges[0] == pytest.approx(1.3 - BODY_RADIUS, abs=1e-12)
 
 
+def test_the_sensing_range_is_measured_from_the_robots_outline_for_obstacles_and_the_target() -> None:
+    # 5.1, 5.2 and 5.3 m from the centre are 4.875, 4.975 and 5.075 m from the 0.225 m outline: the
+    # first two within a 5 m range, the third beyond it (a miss, inf), though all three are 5 m+ away
+    dist = np.array([5.1, 5.2, 5.3])
+    rays = sensing._clearance(dist, np.ones(3, bool), 0.225, 5.0)
+    np.testing.assert_allclose(rays, [4.875, 4.975, np.inf], rtol=1e-12)
+    np.testing.assert_array_equal(sensing.target_sight(False, np.inf, dist, 0.225, 5.0), [True, True, False])
+
+
 def test_rangefinders_reject_what_they_cannot_convert() -> None:
     model, _ = _scene_model()
     with pytest.raises(ValueError, match="shape"):

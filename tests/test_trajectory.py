@@ -206,6 +206,53 @@ def test_interrupted_write_leaves_no_partial_file(tmp_path, trajs, monkeypatch, 
         assert len(load_dataset(path)) == 1
 
 
+def test_an_interrupted_atomic_write_keeps_the_old_file_and_leaves_nothing_beside_it(tmp_path, monkeypatch):
+    """The writers of run files (checkpoints, policies) fill a temporary file, not the target."""
+    from nirl_mj.data.atomic import write_npz
+
+    path = tmp_path / "a.npz"
+    write_npz(path, {"x": np.arange(3)})
+    before = path.read_bytes()
+
+    def interrupted(file, **arrays):
+        file.write(b"PK\x03\x04 partial zip data")
+        raise KeyboardInterrupt("simulated interruption")
+
+    monkeypatch.setattr(np, "savez", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_npz(path, {"x": np.arange(5)})
+    assert os.listdir(tmp_path) == ["a.npz"] and path.read_bytes() == before
+
+
+def test_an_atomic_write_flushes_its_temporary_file_before_the_rename_and_the_directory_after(
+    tmp_path, monkeypatch
+):
+    """Else a crash soon after the rename may leave the new name on an empty or partial file."""
+    from nirl_mj.data import atomic
+
+    events = []
+    fsync, replace = os.fsync, os.replace
+
+    def recorded_fsync(fd):
+        events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
+        return fsync(fd)
+
+    def recorded_replace(src, dst):
+        events.append(("replace", str(src), str(dst)))
+        return replace(src, dst)
+
+    monkeypatch.setattr(atomic.os, "fsync", recorded_fsync)
+    monkeypatch.setattr(atomic.os, "replace", recorded_replace)
+    folder = tmp_path.resolve()  # as /proc names the descriptors' files
+    atomic.write_text(folder / "a.txt", "x")
+    monkeypatch.undo()
+    assert [e[0] for e in events] == ["fsync", "replace", "fsync"], events
+    tmp = Path(events[1][1])
+    assert tmp.parent == folder and tmp.name.startswith(".a.txt.") and not tmp.exists()
+    target = str(folder / "a.txt")
+    assert events == [("fsync", str(tmp)), ("replace", str(tmp), target), ("fsync", str(folder))]
+
+
 def test_atomic_writes_get_the_permissions_open_would_give(tmp_path, trajs):
     from nirl_mj.data.atomic import write_text
 
