@@ -70,6 +70,17 @@ def test_algorithm_1_stops_once_the_margin_is_at_most_epsilon(tmp_path, demos):
     assert checked_changes({"epsilon": 0}, "[config]") == {"epsilon": 0.0}
 
 
+def test_a_resume_of_a_run_stopped_by_epsilon_trains_no_further(tmp_path, demos):
+    """The stop of lines 6-8 is part of the checkpoint: a resume of such a run adds no iteration."""
+    run = tmp_path / "run"
+    config = tiny_config(epsilon=float("inf"))  # stops after its first iteration (of 3)
+    train(run, TINY, demos, config, seed=1)
+    rows = (run / "metrics.jsonl").read_text()
+    train(run, TINY, demos, config, seed=1, resume=True)
+    assert (run / "metrics.jsonl").read_text() == rows and len(rows.splitlines()) == 1
+    assert int(RunDir(run).read_checkpoint()["iteration"]) == 1
+
+
 @pytest.mark.parametrize("matching", ["occupancy", "policy"])
 def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos, matching):
     """Also for the policy matching, whose reward step keeps the learner's past policies."""
@@ -89,6 +100,30 @@ def test_resume_ends_with_the_weights_of_an_uninterrupted_run(tmp_path, demos, m
     lines = (tmp_path / "split" / "metrics.jsonl").read_text().splitlines()
     assert len(lines) == 3
     assert lines == (tmp_path / "whole" / "metrics.jsonl").read_text().splitlines()
+
+
+def test_a_resume_drops_the_metrics_row_written_past_its_checkpoint(tmp_path, demos, monkeypatch):
+    """An iteration appends its metrics row, then writes its checkpoint: a stop between the two leaves a
+    row the checkpoint does not cover, which the resume writes again (kept, it would be there twice)."""
+    config = tiny_config()
+    train(tmp_path / "whole", TINY, demos, config, seed=1)
+    write_checkpoint, calls = RunDir.write_checkpoint, []
+
+    def stopped(self, arrays):
+        calls.append(int(arrays["iteration"]))
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the second iteration's row is written, its checkpoint not
+        write_checkpoint(self, arrays)
+
+    split = tmp_path / "split"
+    with monkeypatch.context() as patch:
+        patch.setattr(RunDir, "write_checkpoint", stopped)
+        with pytest.raises(KeyboardInterrupt):
+            train(split, TINY, demos, config, seed=1)
+    assert calls == [1, 2] and len(RunDir(split).read_metrics()) == 2
+    assert int(RunDir(split).read_checkpoint()["iteration"]) == 1
+    train(split, TINY, demos, config, seed=1, resume=True)
+    assert (split / "metrics.jsonl").read_text() == (tmp_path / "whole" / "metrics.jsonl").read_text()
 
 
 def test_runs_are_never_overwritten_or_mixed(tmp_path, demos):
@@ -116,6 +151,19 @@ def test_runs_are_never_overwritten_or_mixed(tmp_path, demos):
         train(run, TINY, demos, config, seed=0, resume=True)
     with pytest.raises(RunError, match="not a nirl-mj run directory"):
         load_policy(tmp_path)
+
+
+def test_an_experiments_run_directory_holding_a_strangers_file_is_refused_and_the_file_kept(tmp_path, demos):
+    """ensure_trained starts afresh a run killed before its first checkpoint (removing its directory),
+    but not a directory holding anything a training does not write."""
+    from nirl_mj.experiments.training import ensure_trained
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "notes.txt").write_text("mine")
+    with pytest.raises(RunError, match=rf"holds \['notes.txt'\] but no {CHECKPOINT_FILE}"):
+        ensure_trained(run, TINY, demos, tiny_config(), seed=0)
+    assert (run / "notes.txt").read_text() == "mine"
 
 
 def test_foreign_demonstrations_are_a_clear_error(tmp_path):

@@ -527,6 +527,22 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
         rl.tuned("ppo", {"lr_schedule": "cosine"})
 
 
+def test_of_checkpoints_with_equal_validation_scores_the_later_is_selected(tmp_path, monkeypatch):
+    """Ties go to the later checkpoint (nirl_mj.learn.selection's rule): every checkpoint scored 1/2."""
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+
+    def equal_scorer(model, record, task, seed):
+        return lambda best: (0.5, len(record["validation_seeds"]))  # every arena driven
+
+    monkeypatch.setattr(rl, "_validation_scorer", equal_scorer)
+    record = rl.train_rl(tmp_path / "run", OPEN, "dqn", 128, seed=0, checkpoint_every=32,
+                         selection="validation_success")  # fmt: skip
+    assert [(s["steps"], s["score"]) for s in record["scores"]] == [(k, 0.5) for k in (32, 64, 96, 128)]
+    assert record["selected"]["steps"] == 128 and (tmp_path / "run" / record["selected"]["file"]).is_file()
+
+
 def test_validation_arenas_sets_how_many_arenas_score_a_checkpoint_the_defaults_first(tmp_path):
     from helpers import OPEN
 
