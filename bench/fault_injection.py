@@ -190,6 +190,10 @@ def commands(
             return [*nirl, "train", "--demos", str(demos), "--out", str(o), "--resume"]
         return first["train"](o)
 
+    def run_again(o: Path) -> list[str]:
+        # as its refusal says: --resume once the job has written anything in --out, else the same command
+        return [*first["run"](o), "--resume"] if o.is_dir() and any(o.iterdir()) else first["run"](o)
+
     def rl_again(o: Path) -> list[str]:
         if (o / "run.json").is_file():
             return [*nirl, "rl", "--out", str(o), "--resume"]
@@ -197,7 +201,7 @@ def commands(
 
     again = {"train": train_again, "rl": rl_again, "compare": first["compare"],
              "demos": lambda o: [*first["demos"](o), "--overwrite"],
-             "run": lambda o: [*first["run"](o), "--resume"],
+             "run": run_again,
              "export": lambda o: [*first["export"](o), "--overwrite"]}  # fmt: skip
     results = {"train": train_result, "rl": rl_result, "compare": compare_result, "demos": demos_result,
                "run": run_result, "export": export_result}  # fmt: skip

@@ -142,6 +142,12 @@ def test_shipped_experiments_load_full_and_quick():
         "DQN-reward": 2048}  # fmt: skip
     quick = load_experiment("table1", quick=True)  # a name under tasks/ works too
     assert (quick.runs, quick.tests, quick.quick) == (3, 20, True)
+    # a name that is not there: the shipped ones of the command's kind, where a typo finds them
+    said = r"no experiment 'demos' under tasks/: accepted: suites/demos, suites/quality, suites/transfer, or"
+    with pytest.raises(ExperimentError, match=said):
+        load_experiment("demos", kind="suite")
+    with pytest.raises(ExperimentError, match=r"no experiment 'tabel1' under tasks/: accepted: .*\btable1\b"):
+        load_experiment("tabel1", kind="compare")
     assert quick.methods[2].learner_config(quick.config).loop.variant == "paper"
     fig6 = load_experiment(ROOT / "tasks" / "fig6.toml")
     assert (fig6.kind, fig6.obstacles, fig6.speeds) == ("sweep", (5, 10, 20, 30, 40, 50), (1.0, 2.0, 3.0))

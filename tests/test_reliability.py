@@ -614,6 +614,38 @@ def test_any_damage_to_an_experiment_s_files_is_refused_or_recomputed_never_a_tr
             assert len(err.strip().splitlines()) == 1 and tree_digests(out) == before, err
 
 
+@pytest.mark.parametrize(
+    ("damage", "said"),
+    [(lambda text: text[: len(text) // 2], "is not JSON (a write cut short?)"),
+     (lambda text: "[1, 2]", "holds no result"),
+     (lambda text: text.replace('"id": "c-run000"', '"id": "d-run001"'), "holds cell d-run001"),
+     (lambda text: text.replace('"result": 7', '"result": -1'),
+      "holds a result that cannot be this cell's: negative")],
+)  # fmt: skip
+def test_a_damaged_cell_file_is_named_with_what_is_wrong_and_computed_again(tmp_path, damage, said):
+    """A stored cell that holds no finished cell is not silently dropped: the run says which file
+    and why, once, then computes the cell again (and stores it whole)."""
+    from nirl_mj.experiments.executors import Cell, CellStore, Executor
+
+    store = CellStore(tmp_path / "cells", check=lambda result, cell_id: "negative" if result < 0 else None)
+    store.save("c-run000", 7, seconds=0.1, attempts=1)
+    path = store.path("c-run000")
+    assert store.problem("c-run000") is None and store.problem("never-run") is None
+    path.write_text(damage(path.read_text()))
+    assert store.problem("c-run000") == said and store.load("c-run000") is None
+    told = []
+    with Executor("serial") as executor:
+        report = executor.run(
+            [Cell("c-run000", int, ("7",))], store, on_retry=lambda i, why: told.append((i, why))
+        )
+    assert told == [("c-run000", f"{path} {said}: computed again")]
+    assert (
+        report.results == {"c-run000": 7}
+        and store.load("c-run000") == 7
+        and store.problem("c-run000") is None
+    )
+
+
 def test_an_output_whose_lock_cannot_be_written_is_refused_naming_where_the_lock_goes(tmp_path, monkeypatch):
     """The lock goes beside the output; where that directory is not writable the refusal says so
     (not a bare errno), and nothing is left behind. (Root writes anywhere, so the refusal of the

@@ -392,7 +392,7 @@ def cmd_rl(args: argparse.Namespace) -> int:
                            f"`nirl-mj train --out {args.out} --resume`")  # fmt: skip
         if args.task or args.set:
             raise SpecError("--resume continues with the run's task; --task and --set cannot change it")
-        spec = specs.from_dict(saved["task"], str(out.file(RUN_FILE)))
+        spec = specs.from_dict(saved["task"], f"{out.file(RUN_FILE)}: task")
         # what is not given is the run's own (a different one is refused by train_rl, by name)
         args.algo, args.demos = args.algo or saved["algo"], args.demos or saved.get("demos")
         args.seed = saved["seed"] if args.seed is None else args.seed

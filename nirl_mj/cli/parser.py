@@ -64,20 +64,20 @@ def _command(sub, name: str, func: Callable, help: str, *common: str, task: str 
         if key == "json":
             parser.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
         elif key == "backend":
+            resumed = "; a resumed training: the run's" if name == "train" else ""
+            worlds = "the learner's trajectories per iteration, 10 by default" if name == "train" else "64"
             parser.add_argument(
                 "--backend",
                 choices=BACKENDS,
                 default=None,
-                help=f"where {what} run: cpu, the dm_control task (default; a resumed "
-                "training: the run's), or warp, many worlds at once on MuJoCo Warp "
-                "(nirl-mj[warp])",
+                help=f"where {what} run: cpu, the dm_control task (default{resumed}), or warp, many "
+                "worlds at once on MuJoCo Warp (nirl-mj[warp])",
             )
             parser.add_argument(
                 "--worlds",
                 type=_positive_int,
                 default=None,
-                help="with --backend warp: worlds stepped at once (default: 64; train: the learner's "
-                "trajectories per iteration, 10 by default; a resumed training: the run's)",
+                help=f"with --backend warp: worlds stepped at once (default: {worlds}{resumed})",
             )
             parser.add_argument("--device", choices=DEVICES, default=None,
                                 help="with --backend warp: Warp's device (default: cuda)")  # fmt: skip

@@ -367,6 +367,10 @@ def load_experiment(path: str | Path, quick: bool = False, kind: str | None = No
     given, path = path, specs.shipped_path(path)
     if path.suffix != ".toml" and not path.is_file():
         path = specs.TASKS_DIR / f"{path}.toml"
+        if not path.is_file():
+            names = ", ".join(shipped_experiments(kind))
+            raise ExperimentError(f"no experiment {str(given)!r} under tasks/: accepted: {names}, or a .toml "
+                                  "file's path (tasks/ablations/ and tasks/archive/ hold more)")  # fmt: skip
     data = specs.read_toml(path, "experiment file", ExperimentError)
     experiment = from_dict(data, str(path), path.parent, quick)
     if kind is not None and experiment.kind != kind:
@@ -374,6 +378,23 @@ def load_experiment(path: str | Path, quick: bool = False, kind: str | None = No
             f"{given} is a {experiment.kind} experiment: run it with `nirl-mj {experiment.kind}`"
         )
     return experiment
+
+
+def shipped_experiments(kind: str | None = None) -> list[str]:
+    """The names (under ``tasks/``, without ``.toml``) of the shipped experiments of ``kind`` (any kind
+    if None), but those of ``tasks/ablations/`` and ``tasks/archive/``: dozens of past measurements."""
+    names = []
+    for path in sorted(specs.TASKS_DIR.rglob("*.toml")):
+        name = path.relative_to(specs.TASKS_DIR).with_suffix("")
+        if name.parts[0] in ("ablations", "archive"):
+            continue
+        try:
+            found = specs.read_toml(path, "experiment file", ExperimentError).get("kind")
+        except ExperimentError:
+            continue
+        if found in KINDS and kind in (None, found):
+            names.append(name.as_posix())
+    return names
 
 
 def from_dict(

@@ -120,18 +120,32 @@ class CellStore:
         return self.directory / f"{cell_id}.json"
 
     def load(self, cell_id: str) -> Any | None:
-        """The stored result, or None if the cell has not finished (or its file is unreadable, or
-        ``check`` finds its result wrong: it is computed again)."""
+        """The stored result, or None if the cell has not finished (or its file is damaged,
+        :meth:`problem`: it is computed again)."""
+        return self._read(cell_id)[0]
+
+    def problem(self, cell_id: str) -> str | None:
+        """Why the file of ``cell_id`` holds no finished cell (unreadable, cut short, another cell's,
+        or a result ``check`` finds wrong), or None if it does or there is no file."""
+        return self._read(cell_id)[1]
+
+    def _read(self, cell_id: str) -> tuple[Any | None, str | None]:
+        path = self.path(cell_id)
+        if not path.exists():
+            return None, None
         try:
-            record = json.loads(self.path(cell_id).read_text())
+            record = json.loads(path.read_text())
             result = record["result"]
-        except (OSError, ValueError, KeyError, TypeError):
-            return None
+        except OSError as exc:
+            return None, f"cannot be read ({exc.strerror or exc})"
+        except ValueError:
+            return None, "is not JSON (a write cut short?)"
+        except (KeyError, TypeError):
+            return None, "holds no result"
         if record.get("id", cell_id) != cell_id:  # another cell's record under this name (copied over)
-            return None
-        if self.check is not None and self.check(result, cell_id) is not None:
-            return None
-        return result
+            return None, f"holds cell {record.get('id')}"
+        why = self.check(result, cell_id) if self.check is not None else None
+        return (None, f"holds a result that cannot be this cell's: {why}") if why else (result, None)
 
     def save(self, cell_id: str, result: Any, seconds: float, attempts: int, platform: str = "") -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -209,7 +223,7 @@ class Executor:
     ) -> Report:
         """Runs the cells not already in ``store``; returns every result by id and the failures.
         ``on_done(id, result, failure)`` is called as each cell finishes (result None on failure),
-        ``on_retry(id, why)`` when a cell is run again."""
+        ``on_retry(id, why)`` when a cell is run again, or its stored file holds no finished cell."""
         cells = list(cells)
         ids = [c.id for c in cells]
         if len(set(ids)) != len(ids):
@@ -219,6 +233,8 @@ class Executor:
             stored = store.load(cell.id) if store else None
             if stored is None:
                 todo.append(cell)
+                if store and on_retry and (why := store.problem(cell.id)):
+                    on_retry(cell.id, f"{store.path(cell.id)} {why}: computed again")
             else:
                 report.results[cell.id] = stored
                 report.reused.append(cell.id)

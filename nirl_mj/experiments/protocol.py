@@ -257,7 +257,8 @@ def ensure_demos(
     if path.is_file():
         return path
     which = f" for run {run}" if experiment.demos_per_run else ""
-    log(f"demonstrations{which}: {experiment.demos} episodes by the {experiment.expert} expert (seed {seed})")
+    n = experiment.demos
+    log(f"demonstrations{which}: {n} episode{'s' * (n != 1)} by the {experiment.expert} expert (seed {seed})")
     trajectories = collect(experiment.task, ExpertConfig.named(experiment.expert, seed),
                            experiment.demos, seed, workers)  # fmt: skip
     path.parent.mkdir(parents=True, exist_ok=True)

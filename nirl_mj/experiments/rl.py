@@ -669,7 +669,7 @@ def _twist_scale(model, record: dict) -> np.ndarray | None:
         return None
     from nirl_mj.sim.task import action_scale
 
-    return action_scale(specs.from_dict(record["task"], "run record"))
+    return action_scale(specs.from_dict(record["task"], "run record: task"))
 
 
 def load_rl_policy(
@@ -730,7 +730,7 @@ def model_policy(
     if scale is None and shares and record["task"]["control"].get("actions", "discrete") == "continuous":
         from nirl_mj.sim.task import action_scale
 
-        bounds = action_scale(specs.from_dict(record["task"], "run record"))
+        bounds = action_scale(specs.from_dict(record["task"], "run record: task"))
 
     def mode(phi: np.ndarray) -> int | np.ndarray:
         action, _ = model.predict(code(phi), deterministic=True)

@@ -72,7 +72,7 @@ def run_subject(run_dir: str | os.PathLike, which: str = "selected", task: str |
         name = f"rl-{record['algo']}"
     else:
         (policy, record), name = load_policy(run_dir, which), "nirl"
-    spec = specs.load_task(task) if task else specs.from_dict(record["task"], str(run.file(RUN_FILE)))
+    spec = specs.load_task(task) if task else specs.from_dict(record["task"], f"{run.file(RUN_FILE)}: task")
     return Subject(policy, name, spec, frozenset(seen_seeds(record)), run)
 
 

@@ -83,7 +83,7 @@ def saved_settings(run_dir: str | os.PathLike) -> tuple[specs.TaskSpec, LearnerC
                        "same command without --resume")  # fmt: skip
     record = run.read_record()
     return (
-        specs.from_dict(record["task"], str(run.file(RUN_FILE))),
+        specs.from_dict(record["task"], f"{run.file(RUN_FILE)}: task"),
         run_config(record),
         record["demos"],
         record["seed"],

@@ -619,7 +619,7 @@ def finish_training(recording: Recording, run_dir: str | os.PathLike, demos: str
         for i, trajectory in enumerate(trajectories):
             recording.episode(f"demos/{i:03d}", trajectory, reward)
         recording.reward_map(
-            from_dict(record["task"], str(run.file(RUN_FILE))), trajectories[0].arena_seed, reward
+            from_dict(record["task"], f"{run.file(RUN_FILE)}: task"), trajectories[0].arena_seed, reward
         )
     except BaseException:
         recording.abort()
