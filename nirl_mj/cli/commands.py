@@ -351,7 +351,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
         def progress(m) -> None:
             nonlocal recording
-            bar.update()
+            bar.update(m.episode + 1 - bar.n)  # a resume redoes an iteration written past its checkpoint
             bar.set_postfix(margin=f"{m.margin:.3f}", cost=f"{m.cost:.3f}", acc=f"{m.demo_accuracy:.2f}",
                             succ=f"{m.success_rate:.1f}", val="-" if m.validation_success is None
                             else f"{m.validation_success:.2f}")  # fmt: skip
