@@ -607,6 +607,26 @@ def test_serial_sweep_writes_csv_plot_and_table(serial_sweep, capsys):
     assert {r["tests"] for r in results.values() if "tests" in r} == {2}
 
 
+def test_a_sweep_records_and_tables_what_each_method_reads(serial_sweep):
+    """A sweep's results.json carries each method's reads as compare's do (``method_reads``), where
+    the leaderboard finds them, and its table marks a reference as compare's does."""
+    from nirl_mj.experiments.leaderboard import recorded_reads
+    from nirl_mj.experiments.reads import method_reads
+
+    spec, out, _ = serial_sweep
+    experiment = load_experiment(spec, kind="sweep")
+    reads = json.loads((out / "results.json").read_text())["reads"]
+    assert reads == {m.name: method_reads(m, experiment.config) for m in experiment.methods}
+    assert reads["NIRL"] == ["demonstrations", "features", "episode_end"]
+    assert reads["rule"] == ["features", "hand_written"]
+    assert recorded_reads(out) == reads
+    table = (out / "sweep.md").read_text().splitlines()
+    nirl, rule = ([line for line in table if line.startswith(f"| {name} |")] for name in ("NIRL", "rule"))
+    assert len(nirl) == len(rule) == 2  # a row per speed
+    assert all(line.endswith("| demonstrations, features, episode_end |") for line in nirl)
+    assert all(line.endswith("| **reference:** features, hand_written |") for line in rule)
+
+
 @pytest.mark.parametrize("executor", ["local", "ray"])
 def test_executors_and_workers_give_identical_results(serial_sweep, tmp_path, executor, monkeypatch):
     import tempfile

@@ -13,8 +13,8 @@ import pytest
 from helpers import random_trajectory
 
 from nirl_mj.data.trajectory import Trajectory
-from nirl_mj.experiments import compare
-from nirl_mj.experiments.definition import BUILTIN_METHODS, from_dict
+from nirl_mj.experiments import compare, sweep
+from nirl_mj.experiments.definition import BUILTIN_METHODS, from_dict, load_experiment
 from nirl_mj.experiments.reads import (
     LEARNER_BUDGET,
     TASK_SIGNALS,
@@ -85,6 +85,18 @@ def test_the_compare_summary_and_table_carry_reads():
     table = compare.markdown_table(summary)
     assert "| demonstrations, features, episode_end |" in table
     assert "**reference:** demonstrations, features, interactive_expert" in table
+
+
+def test_the_figure_sweep_labels_its_pinned_nirl_a_reference():
+    """tasks/fig6.toml keeps NIRL's settings of its time (selection on validation arenas, an arrival
+    worth 1): its sweep's summary and table say that this NIRL reads the task's outcome and success."""
+    e = load_experiment("fig6", kind="sweep")
+    summary = sweep.summarise(e, {})
+    pinned = ["demonstrations", "features", "episode_end", "task_outcome", "task_success_selection"]
+    assert summary["reads"] == {"NIRL": pinned, "forward": ["hand_written"]}
+    table = sweep.markdown_table(summary, e)
+    assert table.splitlines()[0].endswith("| 50 obstacles | reads |")
+    assert table.count(f"| **reference:** {', '.join(pinned)} |") == len(e.speeds)
 
 
 # -- the learner touches what its reads say --------------------------------------------------------

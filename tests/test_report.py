@@ -24,6 +24,7 @@ from nirl_mj.experiments.main_job import (
     success_path_length,
     write_report,
 )
+from nirl_mj.experiments.reads import method_reads
 from nirl_mj.inspect import figures
 from nirl_mj.learn.bc import CloneSettings
 from nirl_mj.learn.config import LearnerConfig
@@ -203,6 +204,25 @@ def test_the_report_captions_every_figure_and_defines_its_terms(tmp_path):
     path = header.index("path of successful tests (m)")
     assert table["NIRL"][path] == f"{success_path_length([SUCCESS]):.1f}"
     assert table["always forward"][path] == table["control: constant reward"][path] == "-"
+
+
+def test_the_report_marks_a_reference_as_compare_does(tmp_path):
+    """The report's reads column marks a method that reads a task signal as compare's and a suite's
+    tables do (``reads.reads_text``): the progress control reads the task's reward."""
+    run, results, paths = _fake_main_job(tmp_path)
+    experiment = main_experiment(TASK, tests=2)
+    for method in experiment.methods:
+        results[ROWS[method.name]]["reads"] = method_reads(method, experiment.config)
+    report = write_report(tmp_path, run, experiment, results, paths, 30).read_text()
+    rows = {line.split(" | ")[0][2:]: line for line in report.splitlines() if line.startswith("| ")}
+    reference = "| **reference:** demonstrations, features, episode_end, task_reward |"
+    assert rows["control: progress reward"].endswith(reference)
+    assert rows["NIRL"].endswith("| demonstrations, features, episode_end |")
+    assert rows["control: constant reward"].endswith("| demonstrations, features, episode_end |")
+    assert rows["rule on phi(s)"].endswith("| **reference:** features, hand_written |")
+    assert "a **reference** reads a task signal that a learner from demonstrations does not" in " ".join(
+        report.split()
+    )
 
 
 def test_the_compare_table_defines_its_terms_and_captions_its_figure(tmp_path):

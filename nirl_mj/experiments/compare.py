@@ -42,7 +42,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     prepare,
 )
-from nirl_mj.experiments.reads import method_reads, reads_text
+from nirl_mj.experiments.reads import READS_TERM, method_reads, reads_text
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
@@ -178,9 +178,7 @@ def terms_section() -> str:
         "run; *collision*, *timeout*: the mean percentage of tests that hit an obstacle or a wall, or used "
         f"up the step budget first; {SPL_TEXT} (here the mean over the runs); *paper avg / best / worst*: "
         f'the success the NIRL paper ({NIRL_PAPER}) reports in its Table I ("-": a method it does not '
-        "report); *reads*: what a method reads in training or in choosing its policy "
-        "(`nirl_mj/experiments/reads.py`), a **reference** reading a task signal that a learner from "
-        "demonstrations does not."
+        f"report); {READS_TERM}."
     )
     return textwrap.fill(text, 100, break_long_words=False, break_on_hyphens=False)
 

@@ -44,7 +44,7 @@ from nirl_mj.experiments.definition import Experiment, ExperimentError, MethodSp
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.executors import Cell
 from nirl_mj.experiments.protocol import EXPERIMENT_FILE, Execution, RunJob, policy_of, prepare, run_seed
-from nirl_mj.experiments.reads import VOCABULARY, method_reads
+from nirl_mj.experiments.reads import VOCABULARY, method_reads, reads_text
 from nirl_mj.inspect.figures import NIRL_PAPER, SCT_TEXT, SPL_TEXT, paths_plot, results_table, training_plots
 from nirl_mj.inspect.recording import record_run
 from nirl_mj.learn.bc import CloneSettings
@@ -203,8 +203,8 @@ def stored_results(out: str | Path) -> tuple[dict, dict]:
 
 def report_table(out: str | Path) -> str:
     """The results table of the finished main job in ``out`` as its report gives it (the path of
-    the successful tests and SCT from the test episodes)."""
-    return results_table(report_rows(*stored_results(out)))
+    the successful tests and SCT from the test episodes; a reference's reads in bold)."""
+    return results_table(report_rows(*stored_results(out)), reads_text)
 
 
 def record_main_job(
@@ -388,7 +388,8 @@ def _terms(experiment: Experiment, record: dict, rows: dict) -> str:
 - {SPL_TEXT}.
 - {SCT_TEXT}; here a decision lasts {period:g} s and v = {task.control.speed:g} m/s.
 - *tests*: the number of test episodes, one per held-out arena.
-- *reads*: what a method reads, in training or in choosing its policy (`nirl_mj/experiments/reads.py`):
+- *reads*: what a method reads, in training or in choosing its policy (`nirl_mj/experiments/reads.py`;
+  a **reference** reads a task signal that a learner from demonstrations does not):
 {chr(10).join(f"  - {w}: {VOCABULARY[w]}" for w in reads)}
 - *iteration*: one pass of the NIRL paper's Algorithm 1, numbered from 0: {config["trajectories_per_episode"]}
   training episodes driven by the current network with Boltzmann exploration (eq. 8), the reward step and
@@ -489,7 +490,7 @@ held-out arenas of `{task.name}` ({arena}, {task.arena.static_obstacles} static 
 {task.control.speed:g} m/s, {task.robot.drive} drive), none of which was seen in demonstrations, training
 or validation.{guide}
 
-{results_table(rows)}
+{results_table(rows, reads_text)}
 
 The methods: *NIRL* learns a reward from the demonstrations and a network's policy on it; *always
 forward* (action "forward" whatever the state) is what a collapsed learner becomes; the *rule on phi(s)*,

@@ -3,9 +3,9 @@
 A learner from demonstrations reads the demonstrations, phi(s) and that its own episodes ended;
 never the task's reward, outcome or success, in training or in selecting a policy. A method
 that reads more is a reference, and its record says so. Every training run's ``run.json``,
-every method of a compare or main-job ``results.json`` and a suite's ``results.json`` (under
-``reads``, by method) carry a ``reads`` list of :data:`VOCABULARY` words, computed here from the
-method's settings. tests/test_information_budget.py
+every method of a compare or main-job ``results.json`` and a suite's or sweep's ``results.json``
+(under ``reads``, by method) carry a ``reads`` list of :data:`VOCABULARY` words, computed here from
+the method's settings; their tables show it by :func:`reads_text`. tests/test_information_budget.py
 checks the IRL loop's lists against what it touches: rollouts whose outcomes are swapped and whose
 poses and target are redrawn (all that the task's reward is computed from) leave a learner that
 does not read them in the same state, bit for bit.
@@ -89,6 +89,11 @@ def method_reads(method: Any, shared_config: dict | None = None) -> list[str]:
     raise ValueError(f"unknown method kind {kind!r}")
 
 
+def reads_by_method(experiment: Any) -> dict[str, list[str]]:
+    """What each method of an experiment (``definition.Experiment``) reads, by name, in its order."""
+    return {m.name: method_reads(m, experiment.config) for m in experiment.methods}
+
+
 def is_reference(reads: list[str]) -> bool:
     """Whether a method that reads ``reads`` is a reference (it reads a task signal or an expert)."""
     return any(w in TASK_SIGNALS for w in reads)
@@ -100,6 +105,13 @@ def reads_text(reads: list[str] | None) -> str:
         return "?"
     text = ", ".join(reads) or "nothing"
     return f"**reference:** {text}" if is_reference(reads) else text
+
+
+READS_TERM = (
+    "*reads*: what a method reads in training or in choosing its policy (`nirl_mj/experiments/reads.py`), "
+    "a **reference** reading a task signal that a learner from demonstrations does not"
+)
+"""What a table's reads column means, for a report's terms (no full stop: a report ends the sentence)."""
 
 
 def check_words(reads: list[str], where: str) -> None:

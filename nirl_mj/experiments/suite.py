@@ -46,7 +46,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     run_jobs,
 )
-from nirl_mj.experiments.reads import method_reads, reads_text
+from nirl_mj.experiments.reads import reads_by_method, reads_text
 from nirl_mj.experiments.stats import paired, summarise_runs
 from nirl_mj.experiments.suite_cells import (
     ANY,
@@ -235,7 +235,7 @@ def summarise(experiment: Experiment, rows: list[dict]) -> dict:
                     "paired": None if method.name == first else paired(
                         [by_run[first][r]["success"] for r in both], [mine[r]["success"] for r in both]),
                 })  # fmt: skip
-    reads = {m.name: method_reads(m, experiment.config) for m in experiment.methods}
+    reads = reads_by_method(experiment)
     return {"experiment": experiment.name, "description": experiment.description, "quick": experiment.quick,
             "runs": experiment.runs, "tests": experiment.tests, "first": first, "points": points,
             "reads": reads}  # fmt: skip

@@ -11,8 +11,9 @@ figure shows the spread between training seeds as well.
 Two phases of executor cells: the trainings (``train-METHOD-runR``), then one
 cell per (method, run, obstacles, speed) testing the run's policy on the run's
 test arenas (the same arenas in every cell: only the obstacle count and speed
-change). Outputs in OUT: ``sweep.csv``, ``sweep.md``, ``sweep.png`` (lines like
-Fig. 6, a band from the worst to the best run), ``results.json``.
+change). Outputs in OUT: ``sweep.csv``, ``sweep.md`` (with what each method reads,
+``nirl_mj.experiments.reads``, a reference in bold), ``sweep.png`` (lines like
+Fig. 6, a band from the worst to the best run), ``results.json`` (``reads`` by method, as a suite's).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 
@@ -37,6 +39,7 @@ from nirl_mj.experiments.protocol import (
     policy_of,
     prepare,
 )
+from nirl_mj.experiments.reads import READS_TERM, reads_by_method, reads_text
 from nirl_mj.experiments.stats import summarise_runs
 from nirl_mj.sim.spec import TaskSpec
 
@@ -113,7 +116,8 @@ def run_sweep(
 
 
 def summarise(experiment: Experiment, results: dict) -> dict:
-    """One row per (method, obstacles, speed): ``stats.summarise_runs`` over the runs."""
+    """One row per (method, obstacles, speed): ``stats.summarise_runs`` over the runs; and what each
+    method reads (``reads``: method -> words)."""
     rows = []
     for method in experiment.methods:
         for v in experiment.speeds:
@@ -123,7 +127,8 @@ def summarise(experiment: Experiment, results: dict) -> dict:
                 rows.append({"method": method.name, "obstacles": n, "speed": v, **summarise_runs(found),
                              "failed": experiment.runs - len(found)})  # fmt: skip
     return {"experiment": experiment.name, "description": experiment.description, "quick": experiment.quick,
-            "runs": experiment.runs, "tests": experiment.tests, "cells": rows}  # fmt: skip
+            "runs": experiment.runs, "tests": experiment.tests, "cells": rows,
+            "reads": reads_by_method(experiment)}  # fmt: skip
 
 
 def json_line(summary: dict) -> str:
@@ -154,10 +159,13 @@ def csv_table(summary: dict) -> str:
 
 
 def markdown_table(summary: dict, experiment: Experiment) -> str:
-    """Average success (percent, best-worst over runs) per method and speed (rows) and obstacles."""
-    header = "| method | speed (m/s) | " + " | ".join(f"{n} obstacles" for n in experiment.obstacles) + " |"
-    lines = [header, "|---|---|" + "---|" * len(experiment.obstacles)]
+    """Average success (percent, best-worst over runs) per method and speed (rows) and obstacles; and
+    what each method reads, a reference in bold."""
+    columns = [*(f"{n} obstacles" for n in experiment.obstacles), "reads"]
+    header = "| method | speed (m/s) | " + " | ".join(columns) + " |"
+    lines = [header, "|---|---|" + "---|" * len(columns)]
     by_key = {(r["method"], r["speed"], r["obstacles"]): r for r in summary["cells"]}
+    reads = summary.get("reads", {})
     for method in experiment.methods:
         for v in experiment.speeds:
             cells = []
@@ -165,6 +173,7 @@ def markdown_table(summary: dict, experiment: Experiment) -> str:
                 r = by_key[method.name, v, n]
                 spread = f" ({100 * r['worst']:.0f}-{100 * r['best']:.0f})" if r["runs"] > 1 else ""
                 cells.append(f"{100 * r['avg']:.1f}{spread}" if r["runs"] else "-")
+            cells.append(reads_text(reads.get(method.name)))
             lines.append(f"| {method.name} | {v:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -223,6 +232,7 @@ def write_outputs(out: Path, experiment: Experiment, summary: dict, results: dic
 ({experiment.expert} expert), then tested unchanged on {experiment.tests} held-out arenas of
 `{experiment.test_task.name}` per cell, with the cell's number of static obstacles and speed.
 Success in percent: average over the policies (worst-best in brackets).
+{textwrap.fill(f"{READS_TERM}.", 100, break_long_words=False, break_on_hyphens=False)}
 
 {markdown_table(summary, experiment)}
 

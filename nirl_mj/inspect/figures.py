@@ -15,7 +15,7 @@ a vertical line labelled :data:`SELECTED_LABEL`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -213,7 +213,11 @@ def _cell(value: float | None, spec: str) -> str:
     return "-" if value is None or value != value else format(value, spec)
 
 
-def results_table(results: dict[str, dict]) -> str:
+def _words(reads: list[str] | None) -> str:
+    return ", ".join(reads or []) or "nothing"
+
+
+def results_table(results: dict[str, dict], reads_cell: Callable[[list[str] | None], str] = _words) -> str:
     """Markdown table of evaluation results by policy name.
 
     The path column is the mean path of the successful tests only (metres; "-" where none
@@ -222,7 +226,9 @@ def results_table(results: dict[str, dict]) -> str:
     (stored results hold the mean over every test, crashes included, which makes a policy that
     crashes early look efficient) there is no path column. SCT where a row has it ("-" for the
     others); no SCT column where none has. A ``reads`` list in a result (what the method reads,
-    ``nirl_mj.experiments.reads``) becomes a last column."""
+    ``nirl_mj.experiments.reads``) becomes a last column, each cell written by ``reads_cell``
+    (``experiments.reads.reads_text``, which marks a reference, passed in because ``inspect`` may not
+    import ``experiments``; by default the words joined)."""
     rows = results.values()
     reads = any("reads" in r for r in rows)
     path = bool(results) and all("success_path_length" in r for r in rows)
@@ -234,6 +240,6 @@ def results_table(results: dict[str, dict]) -> str:
         cells = [name, f"{r['success_rate']:.0%}", f"{r['collision_rate']:.0%}", f"{r['timeout_rate']:.0%}"]
         cells += [_cell(r["success_path_length"], ".1f")] if path else []
         cells += [f"{r['spl']:.2f}", *([_cell(r.get("sct"), ".2f")] if sct else []), str(r["tests"])]
-        cells += [", ".join(r.get("reads", [])) or "nothing"] if reads else []
+        cells += [reads_cell(r.get("reads"))] if reads else []
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
