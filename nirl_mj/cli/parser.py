@@ -158,20 +158,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(interrupted="finished stages are kept: continue with {again}")
     p.add_argument("--out", default="runs/main", help="run directory (default: runs/main)")
     p.add_argument("--resume", action="store_true", help="continue a run in --out, skipping finished stages")
-    p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--variant", choices=VARIANTS, default="default")
-    p.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record")
-    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of the demonstrations, the training and the test arenas (default: 0)")
+    p.add_argument("--variant", choices=VARIANTS, default="default", help="NIRL's preset (default: default)")
+    p.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record (default: 30)")
+    p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor", help="demonstrator (default: sensor)")
     p.add_argument("--episodes", **iterations)
-    p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas")
+    p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas (default: 100)")
     p.add_argument("--workers", type=_workers, default=None,
                    help="processes for demonstrations, training and evaluation (default: all cores)")
 
     p = _command(sub, "rollout", c.cmd_rollout, "roll out a reference policy on fresh arenas and print each "
                  "episode's outcome", "json", "quiet")  # fmt: skip
-    p.add_argument("--episodes", type=_positive_int, default=10)
-    p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--policy", choices=sorted(POLICIES), default="rule")
+    p.add_argument("--episodes", type=_positive_int, default=10, help="episodes to drive (default: 10)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the arenas (default: 0)")
+    p.add_argument("--policy", choices=sorted(POLICIES), default="rule", help="the policy (default: rule)")
 
     p = _command(sub, "demos", c.cmd_demos, "record expert demonstrations to a dataset file", "json", "quiet",
                  "overwrite", "rerun=the demonstrations")  # fmt: skip
@@ -250,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--demos", help="with --policy: demonstrations (cloned by bc; their arenas are held out)")
     p.add_argument("--train-seed", type=_seed, default=None,
                    help="with --policy bc: its training seed (default: 0)")  # fmt: skip
-    p.add_argument("--tests", type=_positive_int, default=100)
+    p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas (default: 100)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the test arenas")
     p.add_argument("--which", default=None, metavar="selected|last|N",
                    help="with --run: the selected policy (default), the last, or iteration N's")  # fmt: skip
