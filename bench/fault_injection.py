@@ -87,9 +87,10 @@ def rl_result(out: Path) -> dict:
     import zipfile
 
     models = {}
-    for path in sorted(out.glob("*.zip")):  # the parameters: a zip's own bytes hold its write time
+    for path in sorted(out.glob("*.zip")):  # parameters and optimiser: a zip's own bytes hold its write time
         with zipfile.ZipFile(path) as archive:
-            models[path.name] = hashlib.sha256(archive.read("policy.pth")).hexdigest()
+            models[path.name] = {n: hashlib.sha256(archive.read(n)).hexdigest()
+                                 for n in archive.namelist() if n.endswith(".pth")}  # fmt: skip
     return {"record": json.loads((out / "run.json").read_text()), **models}
 
 

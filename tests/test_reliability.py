@@ -700,10 +700,11 @@ def test_a_writer_that_waited_for_a_released_lock_holds_the_new_lock_file_so_a_t
     second = DirectoryLock(out, wait=True)
     thread = threading.Thread(target=wait_for_it)
     thread.start()
-    waiting.wait()
+    assert waiting.wait(timeout=600)  # a guard against a hang if the wait is ever reached otherwise
     first.release()
-    thread.join()
+    thread.join(timeout=600)
     monkeypatch.undo()
+    assert not thread.is_alive()
     assert not failed and second.lock_file.is_file()
     with pytest.raises(LockedError, match=f"being written by process {os.getpid()}"):
         DirectoryLock(out).acquire()

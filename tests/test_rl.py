@@ -390,7 +390,7 @@ def _run_files(run) -> dict:
 @pytest.mark.parametrize(
     ("algo", "selection", "envs", "stop"),
     [("ppo", "validation_success", 2, 1300), ("dqn", "training_success", 1, 700),
-     ("gail", "demo_balanced", 2, 900)],
+     ("gail", "demo_balanced", 2, 900), ("ppo", "last", 1, 1300)],
 )  # fmt: skip
 def test_a_stopped_run_resumes_to_the_uninterrupted_run_bit_for_bit(
     tmp_path, monkeypatch, algo, selection, envs, stop
@@ -457,6 +457,57 @@ def test_a_resume_that_cannot_replay_its_checkpoint_trains_on_and_says_so(tmp_pa
     record = rl.train_rl(tmp_path / "run", OPEN, "ppo", 2048, seed=0, resume=True, **kw)
     assert record["inexact_resumes"] == [done] and record["steps_done"] == 2048
     assert json.loads((tmp_path / "run" / "run.json").read_text())["inexact_resumes"] == [done]
+
+
+def test_a_checkpoint_at_the_budget_inside_ppos_last_rollout_is_not_the_end_of_the_run(tmp_path, monkeypatch):
+    """A budget of whole checkpoints but not of whole rollouts (1,536 of 1,024-decision rollouts) has a
+    checkpoint at 1,536 inside the loop and its end at 2,048: stopped between the two, the run is not
+    taken as finished, by a resume or by an experiment's cell, and ends as the uninterrupted run."""
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+
+    kw = {"seed": 0, "checkpoint_every": 512, "selection": "training_success"}
+    whole = rl.train_rl(tmp_path / "whole", OPEN, "ppo", 1536, **kw)
+    assert whole["steps_done"] == 2048 and whole["finished"]
+    run = tmp_path / "stopped"
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(run, OPEN, "ppo", 1536, on_steps=_stopped_at(1700), **kw)
+    record = json.loads((run / "run.json").read_text())
+    assert record["steps_done"] == 1536 and not record["finished"]
+    resumed = []  # an experiment's cell trains it on (resumes it), as the command does
+    monkeypatch.setattr(rl, "train_rl", lambda *args, **kw: resumed.append(kw["resume"]) or {})
+    rl.ensure_rl_trained(run, OPEN, "ppo", 1536, 0, selection="training_success")
+    monkeypatch.undo()
+    assert resumed == [True]
+    rl.train_rl(run, OPEN, "ppo", 1536, resume=True, **kw)
+    assert _run_files(run) == _run_files(tmp_path / "whole")
+
+
+def test_a_stop_after_a_resume_to_a_new_total_goes_on_from_the_saved_model(tmp_path):
+    """Trained to one total, then on to another: two trainings that no single one from the seed
+    equals, so a stop of the second is not replayed (the record lists the budgets) but continued
+    from the saved model; a lost model makes a replay unable to vouch for itself, not a crash."""
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+
+    kw = {"seed": 0, "checkpoint_every": 512, "selection": "training_success"}
+    rl.train_rl(tmp_path / "run", OPEN, "ppo", 1024, **kw)
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(tmp_path / "run", OPEN, "ppo", 3072, resume=True, on_steps=_stopped_at(1600), **kw)
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert record["budgets"] == [1024, 3072] and 1024 < record["steps_done"] < 3072
+    record = rl.train_rl(tmp_path / "run", OPEN, "ppo", 3072, resume=True, **kw)
+    # from the saved model: whole rollouts of 1,024 after its checkpoint, not checked against a replay
+    assert record["steps_done"] >= 3072 and record["finished"] and "inexact_resumes" not in record
+    # a stopped run whose model is gone: replayed, and said unchecked
+    with pytest.raises(KeyboardInterrupt):
+        rl.train_rl(tmp_path / "lost", OPEN, "ppo", 2048, on_steps=_stopped_at(1100), **kw)
+    done = json.loads((tmp_path / "lost" / "run.json").read_text())["steps_done"]
+    (tmp_path / "lost" / "model.zip").unlink()
+    record = rl.train_rl(tmp_path / "lost", OPEN, "ppo", 2048, resume=True, **kw)
+    assert record["inexact_resumes"] == [done] and record["finished"]
 
 
 def test_a_saved_model_drives_the_documented_features_environment_through_its_loader(tmp_path):

@@ -414,11 +414,13 @@ def train_rl(
         run.remove_leftovers()
         if run.file(MODEL_FILE).is_file():
             _check_model_matches(run, saved["steps_done"])
-        replay_to = _replays(saved, steps)
         # a resume may train on to a larger total
         record = {**saved, "steps": steps, "reads": record["reads"]}
-        if record["steps_done"] >= steps:
+        if _finished(record, steps):
             return record
+        if steps != saved["steps"]:  # two trainings from now on: no uninterrupted run to replay
+            record["budgets"] = [*saved.get("budgets", [saved["steps"]]), steps]
+        replay_to = _replays(record)
     elif not run.is_empty() and not overwrite:
         raise RunError(f"{run} exists and is not empty; pass --resume to continue it, --overwrite to "
                        "replace it, or choose another --out")  # fmt: skip
@@ -461,17 +463,25 @@ def train_rl(
         elif selection == "validation_success":
             scorer = _validation_scorer(model, record, task, seed)
 
-        def checkpoint(outcomes: list[bool]) -> None:
+        unchecked = bool(replay_to)  # a replay is checked once, at the saved checkpoint
+
+        def checkpoint(outcomes: list[bool], final: bool = False) -> None:
             """Scores the model, keeps it if it is the best yet, then saves it (and the discriminator)
-            and the record. ``outcomes``: the last training episodes ended (at most
-            :data:`SUCCESS_WINDOW`). A replayed checkpoint is in the record already; at the last one
-            the replay is checked against the saved model (:func:`_same_as_saved`)."""
+            and the record (``finished`` after the last update). ``outcomes``: the last training
+            episodes ended (at most :data:`SUCCESS_WINDOW`). A replayed checkpoint is in the record
+            already; at the saved one the replay is checked against the saved model
+            (:func:`_same_as_saved`)."""
+            nonlocal unchecked
             steps_now = int(model.num_timesteps)
-            if steps_now <= replay_to:
-                if steps_now == replay_to and not _same_as_saved(run, model, reward if adversarial else None):
-                    # another machine's arithmetic, or a run resumed before replays existed: on from here
-                    record["inexact_resumes"] = [*record.get("inexact_resumes", []), replay_to]
+            if steps_now < replay_to:
                 return
+            if unchecked:
+                unchecked = False
+                if steps_now != replay_to or not _same_as_saved(run, model, reward if adversarial else None):
+                    # another machine's arithmetic, a run resumed by older code, a lost model: on from here
+                    record["inexact_resumes"] = [*record.get("inexact_resumes", []), replay_to]
+                if steps_now == replay_to:
+                    return
             best = record.get("selected")
             score, driven = None, None
             if selection == "validation_success":
@@ -503,7 +513,7 @@ def train_rl(
                     record["selected"], replaced = {**entry, "file": name}, (best or {}).get("file")
             if selection == "training_success":
                 record["recent_outcomes"] = list(outcomes)  # a resume scores on with the same window
-            record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used])
+            record.update(steps_done=steps_now, train_seeds=[*done_before, *arenas.used], finished=final)
             # the model, then the discriminator, right before the record, after the scoring (seconds
             # of validation episodes): a kill after the model's write leaves it ahead of its record,
             # which a resume refuses (:func:`_check_model_matches`); the window is a few file writes wide
@@ -517,7 +527,7 @@ def train_rl(
         def replaying(n: int, stats: dict) -> None:
             """Progress in a replay: its decisions count as done already (the caller's count does)."""
             now = int(model.num_timesteps)
-            on_steps(max(0, now - max(replay_to, now - n)),
+            on_steps(min(n, max(0, now - replay_to)),
                      {**stats, "replaying": f"{now}/{replay_to}"} if now < replay_to else stats)  # fmt: skip
 
         outcomes = record.get("recent_outcomes", []) if from_saved else []
@@ -527,23 +537,29 @@ def train_rl(
         callbacks.append(progress)
         model.learn(steps - record["steps_done"] if from_saved else steps, callback=callbacks,
                     reset_num_timesteps=not from_saved)  # fmt: skip
-        progress.checkpoint_now()  # the model after its last update (never saved inside the loop)
+        progress.checkpoint_now(final=True)  # the model after its last update (never saved inside the loop)
     finally:
         venv.close()
     return record
 
 
-def _replays(record: dict, steps: int) -> int:
-    """The decisions a resume replays (0: none). A run stopped before its budget is trained again from
-    its seed up to its last checkpoint, keeping the scores its record holds (no validation episode is
-    driven again), and trains on from there: it ends bit for bit as an uninterrupted run would, which
-    no saved state gives (the episodes in progress, PPO's rollout, DQN's replay buffer, the
-    discriminator's optimiser are not saved); a stop costs the training up to it, not its result. A
-    run trained on to a new total (``steps`` other than the recorded budget) continues from its saved
-    model: no uninterrupted run would equal it, and so does a run recorded before selection existed."""
+def _finished(record: dict, steps: int) -> bool:
+    """Whether a run's record holds its training for ``steps`` decisions: its last checkpoint, after the
+    last update, written (``finished``; a record of older code has no such key: its decisions reached
+    ``steps``). A checkpoint inside the loop may fall at the budget, before PPO's last rollout ends."""
+    return record.get("steps_done", 0) >= steps and record.get("finished", True)
+
+
+def _replays(record: dict) -> int:
+    """The decisions an unfinished run's resume replays (0: none). A run stopped before its end is
+    trained again from its seed up to its last checkpoint, keeping the scores its record holds (no
+    validation episode is driven again), and trains on from there: it ends bit for bit as an
+    uninterrupted run would, which no saved state gives (the episodes in progress, PPO's rollout, DQN's
+    replay buffer, the discriminator's optimiser are not saved); a stop costs the training up to it,
+    not its result. A run trained on to a new total (``budgets`` in its record: two trainings)
+    continues from its saved model: no single training from its seed equals it."""
     done = record.get("steps_done", 0)
-    legacy = "selection" not in record.get("config", {})  # resumes as it was trained
-    return done if 0 < done < steps == record.get("steps") and not legacy else 0
+    return done if done > 0 and "budgets" not in record else 0
 
 
 def _same_as_saved(run: RunDir, model: Any, reward: Any) -> bool:
@@ -561,14 +577,16 @@ def _same_as_saved(run: RunDir, model: Any, reward: Any) -> bool:
             return type(a) is type(b) and a.shape == b.shape and bool((a == b).all())
         return a == b
 
-    data, params, _ = load_from_zip_file(run.model_file(), device="cpu")
-    if data.get("num_timesteps") != model.num_timesteps or not equal(params, model.get_parameters()):
-        return False
-    if reward is None:
-        return True
     from nirl_mj.experiments.adversarial import read_discriminator
 
-    return equal(read_discriminator(run), reward.state())
+    try:  # a lost or damaged file cannot vouch for the replay
+        data, params, _ = load_from_zip_file(run.model_file(), device="cpu")
+        discriminator = read_discriminator(run) if reward is not None else None
+    except (RunError, OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return False
+    if data.get("num_timesteps") != model.num_timesteps or not equal(params, model.get_parameters()):
+        return False
+    return reward is None or equal(discriminator, reward.state())
 
 
 def _check_model_matches(run: RunDir, steps_done: int) -> None:
@@ -595,7 +613,9 @@ def _demos_name(demos: str | os.PathLike) -> str:
     return text if text.startswith("minari:") or not text else str(Path(text).resolve())
 
 
-def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps, outcomes: list[bool]) -> Any:
+def _Progress(
+    checkpoint: Callable[[list[bool], bool], None], every: int, on_steps, outcomes: list[bool]
+) -> Any:
     """A Stable-Baselines3 callback: progress after every step, a checkpoint every ``every`` steps
     (handed the outcomes of the last training episodes, at most :data:`SUCCESS_WINDOW`, starting from
     ``outcomes``), but not at the last step of learning: the model is updated after it, and the
@@ -614,8 +634,8 @@ def _Progress(checkpoint: Callable[[list[bool]], None], every: int, on_steps, ou
             n, rollout = self.locals.get("n_steps"), self.locals.get("n_rollout_steps")
             return n is None or rollout is None or n == rollout - 1
 
-        def checkpoint_now(self) -> None:
-            checkpoint(self.outcomes[-SUCCESS_WINDOW:])
+        def checkpoint_now(self, final: bool = False) -> None:
+            checkpoint(self.outcomes[-SUCCESS_WINDOW:], final)
 
         def _on_step(self) -> bool:
             for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
@@ -649,7 +669,7 @@ def ensure_rl_trained(
     run = RunDir(run_dir)
     if run.is_run:
         record = run.read_record()
-        if record.get("steps_done", 0) >= steps and run.file(MODEL_FILE).is_file():
+        if _finished(record, steps) and run.file(MODEL_FILE).is_file():
             _check_model_matches(run, record["steps_done"])
             return record
     return train_rl(run_dir, task, algo, steps, seed, resume=run.is_run, demos=demos, selection=selection,
