@@ -17,18 +17,19 @@ training episode draws the arena of ``seeds.domain_seed("train", seed, k)`` for 
 tests skip them like a NIRL run's.
 
 The run directory (``nirl_mj.data.rundir``) holds ``run.json`` (``"kind": "rl"``, the algorithm,
-its settings, the task, seed and arenas, every checkpoint's selection score), ``model.zip``
+its settings, the task, seed and arenas, every checkpoint's selection score, ``finished`` once the
+checkpoint after the last update is written), ``model.zip``
 (Stable-Baselines3's file, rewritten atomically at every checkpoint), the selected checkpoint
 ``selected-<decisions>.zip`` that the record names (:data:`SELECTIONS`), GAIL's and AIRL's
 ``discriminator.npz`` (the last checkpoint's: AIRL's reward maps show it, not the selected
 checkpoint's) and ``eval.json``. A resume of a stopped run replays it from its seed to its last
 checkpoint, keeping the scores recorded there, and trains on: it ends bit for bit as the
 uninterrupted run (:func:`_replays`; the episodes in progress, PPO's rollout and DQN's replay buffer
-are in no file); a replay that does not reach the saved model there (another machine's arithmetic)
-trains on from the replay and lists that checkpoint in the record's ``inexact_resumes``. A resume
-that trains on to a new total continues from the saved model, with the arenas that follow and the
-success window of ``training_success`` as it was. A run recorded before selection existed (no
-``selection`` in its config) resumes as it was trained.
+are in no file); a replay that does not reach the saved model there
+(another machine's arithmetic, a lost model) trains on from the replay and lists that checkpoint in
+the record's ``inexact_resumes``. A resume that trains on to a new total continues from the saved
+model, with the arenas that follow and the success window of ``training_success`` as it was, and
+lists the run's ``budgets``: a stop of it later goes on from the saved model too.
 
 Needs the optional extra ``nirl-mj[gym]``; imported only by the commands that train or load an
 RL run, so the core install does not need it.
