@@ -237,8 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=None,
                    help="training seed (network, arenas; default: 0; a resume: the run's)")  # fmt: skip
     p.add_argument("--out", required=True, help="run directory (evaluate it with nirl-mj eval --run)")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out: replayed from its seed "
-                   "to its last checkpoint, it ends as the uninterrupted run would")  # fmt: skip
+    p.add_argument("--resume", action="store_true", help="continue the run in --out: a stopped run is "
+                   "replayed from its seed to its last checkpoint and ends as if uninterrupted; with a "
+                   "larger --steps, it goes on from its saved model")  # fmt: skip
 
     p = _command(sub, "eval", c.cmd_eval, "evaluate a trained run's policy on held-out arenas", "json",
                  "quiet", "overwrite=an existing --rerun file, and the same evaluation in RUN/eval.json",
