@@ -432,10 +432,10 @@ def train_rl(
 
     legacy = "selection" not in config
     from_saved = resume and not replay_to
+    # where training starts: the saved checkpoint, or the seed (a new run, or a replay)
+    start = record if from_saved else {"train_seeds": [], "steps_done": 0}
     train_task = specs.replace(task, robot={"drive": config.get("train_drive", task.robot.drive)})
-    venv, arenas = _environment(
-        train_task, seed, len(record["train_seeds"]) if from_saved else 0, envs, legacy, config
-    )
+    venv, arenas = _environment(train_task, seed, len(start["train_seeds"]), envs, legacy, config)
     try:  # the environments are closed whatever fails after they start (a model that cannot load, ...)
         callbacks = []
         code, _ = observation_code(config)
@@ -457,7 +457,7 @@ def train_rl(
         model.set_logger(Logger(folder=None, output_formats=[]))
         if adversarial:
             reward.policy = model.policy
-        done_before = list(record["train_seeds"]) if from_saved else []
+        done_before = list(start["train_seeds"])
         scorer = None  # training_success scores the outcomes the checkpoint is handed; last scores nothing
         if selection == "demo_balanced":
             scorer = _demo_scorer(model, trajectories, code)
@@ -531,13 +531,12 @@ def train_rl(
             on_steps(min(n, max(0, now - replay_to)),
                      {**stats, "replaying": f"{now}/{replay_to}"} if now < replay_to else stats)  # fmt: skip
 
-        outcomes = record.get("recent_outcomes", []) if from_saved else []
+        outcomes = start.get("recent_outcomes", [])
         progress = _Progress(
             checkpoint, checkpoint_every, replaying if on_steps and replay_to else on_steps, outcomes
         )
         callbacks.append(progress)
-        model.learn(steps - record["steps_done"] if from_saved else steps, callback=callbacks,
-                    reset_num_timesteps=not from_saved)  # fmt: skip
+        model.learn(steps - start["steps_done"], callback=callbacks, reset_num_timesteps=not from_saved)
         progress.checkpoint_now(final=True)  # the model after its last update (never saved inside the loop)
     finally:
         venv.close()
