@@ -272,7 +272,7 @@ def test_an_experiment_may_tune_ppo_within_its_known_settings():
     assert from_dict(data).identity()["methods"][0]["settings"] == {"learning_rate": 1e-4, "n_epochs": 5}
     # untuned methods keep the identity they had before the key existed
     assert "settings" not in from_dict({"kind": "compare", "methods": ["GAIL"]}).identity()["methods"][0]
-    for bad, message in (({"lr": 1.0}, "settings.lr: accepted: learning_rate"),
+    for bad, message in (({"lr": 1.0}, "settings.lr: accepted for ppo: learning_rate"),
                          ({"n_epochs": 2.5}, "settings.n_epochs = 2.5: expected an int >= 1"),
                          ({"learning_rate": -1.0}, r"expected a float in \(0.0, inf\)"),
                          ({"gamma": 1.5}, r"expected a float in \(0.0, 1.0\]"),
@@ -632,8 +632,24 @@ def test_ppo_may_see_phi_as_nirls_bearing_code(tmp_path):
     np.testing.assert_allclose(code(phi), NetworkInputs(scaled=True, bearing=True)(phi), rtol=1e-6)
     expected, _ = model.predict(code(phi), deterministic=True)
     assert rl.model_policy(model, record, sampled=False, seed=0, shares=True)(phi) == int(expected)
-    with pytest.raises(ValueError, match="settings apply to PPO and its adversarial learners, not dqn"):
+    with pytest.raises(ValueError, match="settings.inputs: accepted for dqn: exploration_fraction, valid"):
         rl.tuned("dqn", {"inputs": "bearing"})
+
+
+def test_dqn_explores_over_the_same_decisions_at_half_the_budget_and_twice_the_fraction():
+    from nirl_mj.experiments import rl
+
+    def epsilons(steps: int, changes: dict) -> np.ndarray:
+        settings = rl._model_settings(rl.run_config("dqn", "validation_success", 1, changes))
+        model = sb3.DQN("MlpPolicy", "CartPole-v1", device="cpu", **settings)
+        # Stable-Baselines3 reads the schedule at progress_remaining = 1 - decisions done / budget
+        return np.array([model.exploration_schedule(1.0 - t / steps) for t in range(0, 50_001, 250)])
+
+    default, half = epsilons(100_000, {}), epsilons(50_000, {"exploration_fraction": 0.4})
+    assert default[0] == 1.0 and default[-1] == half[-1] == 0.05
+    np.testing.assert_allclose(half, default, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match=r"exploration_fraction = 1.5: expected a float in \(0.0, 1.0\]"):
+        rl.tuned("dqn", {"exploration_fraction": 1.5})
 
 
 @pytest.mark.parametrize("algo", ["gail", "airl-absorbing"])

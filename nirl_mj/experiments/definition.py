@@ -83,10 +83,10 @@ class MethodSpec:
     ``learn.bc.CloneSettings.of``); ``variant``/``method``/``config`` matter for ``kind = "irl"``:
     ``LearnerConfig.preset(variant, method=method, **experiment config, **config)``; ``algo``,
     ``steps`` (decisions of training), ``selection`` (``experiments.rl.SELECTIONS``), ``envs``
-    (environments sharing each rollout), ``settings`` (PPO's, ``experiments.rl.TUNABLE``) and
-    ``train_drive`` (the training episodes' drive, ``sim.spec.DRIVES``; "" the task's) for
-    ``kind = "rl"`` only; ``settings`` also for ``kind = "dagger"`` (its rounds and learner episodes
-    per round: ``experiments.dagger.DaggerConfig.of``) and ``"plugin"``."""
+    (environments sharing each rollout), ``settings`` (PPO's, ``experiments.rl.TUNABLE``; DQN's,
+    ``TUNABLE_DQN``) and ``train_drive`` (the training episodes' drive, ``sim.spec.DRIVES``; "" the
+    task's) for ``kind = "rl"`` only; ``settings`` also for ``kind = "dagger"`` (its rounds and
+    learner episodes per round: ``experiments.dagger.DaggerConfig.of``) and ``"plugin"``."""
 
     name: str
     kind: str
@@ -97,7 +97,7 @@ class MethodSpec:
     steps: int = DEFAULT_STEPS
     selection: str = LEGACY["selection"]
     envs: int = LEGACY["envs"]
-    settings: dict = field(default_factory=dict)  # rl: PPO's (experiments.rl.TUNABLE); dagger: its budget
+    settings: dict = field(default_factory=dict)  # rl: experiments.rl.TUNABLE(_DQN); dagger: its budget
     plugin: str = ""  # kind "plugin": the entry point of group nirl_mj.methods (experiments.plugins)
     declared_reads: tuple[str, ...] = ()  # kind "plugin": what the method declares it reads
     train_drive: str = ""  # rl: the training episodes' drive ("": the task's; tests drive the task's)

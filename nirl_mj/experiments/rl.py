@@ -122,6 +122,10 @@ a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 
 :data:`CHOICES`. ``validation_arenas`` is the selection's, not PPO's: the arenas
 ``validation_success`` drives every checkpoint on (default :data:`VALIDATION_ARENAS`; the first
 :data:`VALIDATION_ARENAS` are the default's)."""
+TUNABLE_DQN = {"exploration_fraction": (float, 0.0, 1.0), "validation_arenas": TUNABLE["validation_arenas"]}
+"""DQN's settings an experiment may change, as :data:`TUNABLE`'s: ``exploration_fraction``, the part
+of the run's decisions over which epsilon falls from 1 to 0.05 (0.2 of 100,000 by default: 0.4 of
+50,000 explores over the same first 20,000 decisions)."""
 CHOICES = {
     "lr_schedule": ("constant", "linear"),
     "act": ("sampled", "greedy"),
@@ -141,20 +145,20 @@ CHECKPOINT_EVERY = 5_000
 
 
 def tuned(algo: str, changes: dict) -> dict:
-    """``changes`` to PPO's settings checked (:data:`TUNABLE`): ValueError naming the key and what
+    """``changes`` to the algorithm's settings checked (:data:`TUNABLE` and :data:`CHOICES` for PPO
+    and its adversarial learners, :data:`TUNABLE_DQN` for DQN): ValueError naming the key and what
     is accepted."""
-    if changes and algo == "dqn":
-        raise ValueError("settings apply to PPO and its adversarial learners, not dqn")
+    tunable, choices = (TUNABLE_DQN, {}) if algo == "dqn" else (TUNABLE, CHOICES)
     out = {}
     for key, value in changes.items():
-        if key in CHOICES:
-            if value not in CHOICES[key]:
-                raise ValueError(f"settings.{key} = {value!r}: accepted: {', '.join(CHOICES[key])}")
+        if key in choices:
+            if value not in choices[key]:
+                raise ValueError(f"settings.{key} = {value!r}: accepted: {', '.join(choices[key])}")
             out[key] = value
             continue
-        if key not in TUNABLE:
-            raise ValueError(f"settings.{key}: accepted: {', '.join([*TUNABLE, *CHOICES])}")
-        kind, low, high = TUNABLE[key]
+        if key not in tunable:
+            raise ValueError(f"settings.{key}: accepted for {algo}: {', '.join([*tunable, *choices])}")
+        kind, low, high = tunable[key]
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         ok = type(value) is kind and np.isfinite(value)
