@@ -650,6 +650,9 @@ def test_dqn_explores_over_the_same_decisions_at_half_the_budget_and_twice_the_f
     np.testing.assert_allclose(half, default, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match=r"exploration_fraction = 1.5: expected a float in \(0.0, 1.0\]"):
         rl.tuned("dqn", {"exploration_fraction": 1.5})
+    # the selection's arenas are the run's, never DQN's own setting
+    config = rl.run_config("dqn", "validation_success", 1, {"validation_arenas": 50})
+    assert config["validation_arenas"] == 50 and "validation_arenas" not in rl._model_settings(config)
 
 
 @pytest.mark.parametrize("algo", ["gail", "airl-absorbing"])

@@ -363,7 +363,7 @@ def train_rl(
     GAIL and AIRL need ``demos`` (a dataset path), the demonstrations they imitate. ``selection``
     (:data:`SELECTIONS`; default :func:`default_selection`) scores every checkpoint and keeps the
     best (``selected-<decisions>.zip``); ``envs`` environments share each rollout; ``changes`` tune
-    PPO (:func:`tuned`); ``train_drive`` (``planar``, ``tyre`` or ``rollers``; "" the task's) is the
+    PPO or DQN (:func:`tuned`); ``train_drive`` (``planar``, ``tyre`` or ``rollers``; "" the task's) is the
     drive of the training episodes (as NIRL's ``train_drive`` is of its own); this method's validation
     and tests drive ``task``.
     A resume given no ``selection`` (or ``envs``, ``train_drive`` None) takes the run's own.
