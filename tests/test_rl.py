@@ -578,6 +578,91 @@ def test_validation_selection_drives_every_checkpoint_on_the_same_validation_are
         rl.tuned("ppo", {"lr_schedule": "cosine"})
 
 
+def test_an_episode_is_its_arena_and_its_actions_whatever_the_environment_drove_before():
+    """What validation's reuse rests on (experiments.rl._validation_scorer): an arena driven after
+    others, in the same environment, is driven as in a fresh one, on the tyre wheels among obstacles."""
+    from nirl_mj.experts.policies import PolicyAgent
+    from nirl_mj.sim import spec
+    from nirl_mj.sim.episode import run_episode
+    from nirl_mj.sim.task import make_env
+
+    arena = {"size": (30.0, 30.0), "start": (5.0, 5.0), "target": (25.0, 25.0), "static_obstacles": 6}
+    task = spec.replace(spec.load_task("navigate"), arena=arena, control={"step_budget": 40})
+    assert task.robot.drive == "tyre"
+    rule = PolicyAgent.named("rule")
+    used = make_env(task)
+    for arena in (11, 12):
+        run_episode(used, rule, arena)
+    after, fresh = run_episode(used, rule, 13), run_episode(make_env(task), rule, 13)
+    assert len(after.actions) > 5 and after.outcome == fresh.outcome
+    for field in ("features", "actions", "poses"):
+        np.testing.assert_array_equal(getattr(after, field), getattr(fresh, field))
+
+
+def test_validation_reuses_an_arena_only_where_the_policy_would_drive_it_again(tmp_path, monkeypatch):
+    import torch
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.experts.policies import PolicyAgent
+    from nirl_mj.sim.episode import run_episode
+    from nirl_mj.sim.task import make_env
+
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    record = rl.train_rl(tmp_path / "run", OPEN, "dqn", 64, seed=0, checkpoint_every=64,
+                         selection="validation_success")  # fmt: skip
+    model = sb3.DQN.load(tmp_path / "run" / "model.zip", device="cpu")
+    scorer = rl._validation_scorer(model, record, OPEN, 0)
+    first = scorer(None)
+    assert scorer.reused == 0 and first[1] == 3
+    assert scorer(None) == first and scorer.reused == 3  # the same policy: nothing driven again
+    # another policy: one action in every state, none of those the first took first
+    env, policy = make_env(OPEN), rl.model_policy(model, record, None, 0, shares=True)
+    firsts = {
+        int(run_episode(env, PolicyAgent(policy, "x"), a).actions[0]) for a in record["validation_seeds"]
+    }
+    only = min(set(range(6)) - firsts)
+    with torch.no_grad():
+        layer = model.q_net.q_net[-1]
+        layer.weight.zero_()
+        layer.bias.copy_(torch.eye(6, dtype=layer.bias.dtype)[only])
+    changed = scorer(None)
+    assert scorer.reused == 3 and changed == rl._validation_scorer(model, record, OPEN, 0)(None)
+    assert scorer(None) == changed and scorer.reused == 6  # and then its own episodes are reused
+
+
+def test_reused_validation_episodes_leave_every_score_and_model_as_driving_them_does(tmp_path, monkeypatch):
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.sim import spec
+
+    monkeypatch.setattr(rl, "VALIDATION_ARENAS", 3)
+    monkeypatch.setattr(rl, "VALIDATION_CUT", False)  # every arena scored, so that reuse has the most to do
+    reused, real_scorer = [], rl._validation_scorer
+
+    def spy_scorer(model, record, task, seed):
+        scorer = real_scorer(model, record, task, seed)
+
+        def score(best):
+            result = scorer(best)
+            reused.append(scorer.reused)
+            return result
+
+        return score
+
+    monkeypatch.setattr(rl, "_validation_scorer", spy_scorer)
+    task = spec.replace(OPEN, control={"step_budget": 40})  # an untrained policy times out: soon
+    for reuse in (True, False):
+        monkeypatch.setattr(rl, "VALIDATION_REUSE", reuse)
+        rl.train_rl(tmp_path / str(reuse), task, "ppo", 1024, seed=3, checkpoint_every=256, envs=2,
+                    selection="validation_success", changes={"act": "greedy"})  # fmt: skip
+    on, off = reused[: len(reused) // 2], reused[len(reused) // 2 :]
+    # inside PPO's one rollout the policy stays: its episodes are reused, then driven after the update
+    assert on[:3] == [0, 3, 6] and off == [0, 0, 0, 0]
+    assert _run_files(tmp_path / "True") == _run_files(tmp_path / "False")
+
+
 def test_of_checkpoints_with_equal_validation_scores_the_later_is_selected(tmp_path, monkeypatch):
     """Ties go to the later checkpoint (nirl_mj.learn.selection's rule): every checkpoint scored 1/2."""
     from helpers import OPEN

@@ -93,8 +93,9 @@ the tests drive it, on the same :data:`VALIDATION_ARENAS` arenas of the validati
 checkpoint (paired: the same arenas and the same sampling stream), stopping once it can no longer
 reach the best score so far (:func:`_validation_scorer`: its entry in the record then has no
 ``score`` (null), ``at_most``, the most it could have reached, and ``driven``, the arenas it
-drove). The last two read the task's success (recorded as ``task_success_selection``): for PPO and
-DQN, which read its reward anyway.
+scored: driven, or for a policy acting by its mode, reused where it would drive an earlier
+checkpoint's episode again). The last two read the task's success (recorded as
+``task_success_selection``): for PPO and DQN, which read its reward anyway.
 The best score wins, the later checkpoint on a tie (the rule of every method:
 ``nirl_mj.learn.selection``)."""
 VALIDATION_ARENAS = 20
@@ -292,11 +293,17 @@ def _validation_scorer(
     """The checkpoint's success on the run's validation arenas, driven as the tests drive it
     (selection validation_success): the same arenas and the same sampling stream every time.
 
-    ``score(best)`` returns (success, arenas driven). Given ``best``, the best score so far, it
+    ``score(best)`` returns (success, arenas scored). Given ``best``, the best score so far, it
     stops once the checkpoint can no longer reach it: the arenas left cannot change the selection
     (the best score wins, the later checkpoint on a tie), so they are not driven, and the success
     returned is then the most the checkpoint could have scored, below ``best``
-    (:data:`VALIDATION_CUT`: False drives every arena)."""
+    (:data:`VALIDATION_CUT`: False drives every arena).
+
+    A policy that acts by its mode (DQN, PPO with ``act = "greedy"``) is a function of phi(s), and an
+    episode is a function of its arena and its actions (``sim.episode``): where the checkpoint takes,
+    in every state of the episode an earlier checkpoint drove in an arena, the action taken there,
+    it would drive that episode again, so its outcome is reused and the arena is not driven
+    (:data:`VALIDATION_REUSE`; ``score.reused`` counts them). The scores are the same either way."""
     from nirl_mj.data.outcomes import outcome_rates
     from nirl_mj.experts.policies import PolicyAgent
     from nirl_mj.sim.episode import run_episode
@@ -304,26 +311,52 @@ def _validation_scorer(
 
     env = make_env(task)
     seeds = record["validation_seeds"]
+    by_mode = VALIDATION_REUSE and not _samples(record, None) and task.control.actions == "discrete"
+    driven_before: dict[int, tuple[list[np.ndarray], list[int], int]] = {}  # arena: phi(s), actions, success
+
+    def outcome(policy: Callable[[np.ndarray], int], arena: int) -> int:
+        """1 if the policy reaches the target in ``arena``, counted as the tests' metrics count it
+        (``data.outcomes``); reused where the policy would drive the episode driven before."""
+        before = driven_before.get(arena)
+        if before is not None and all(policy(phi) == action for phi, action in zip(*before[:2], strict=True)):
+            score.reused += 1
+            return before[2]
+        seen: list[np.ndarray] = []
+
+        def recording(phi: np.ndarray) -> int:
+            seen.append(phi.copy())
+            return policy(phi)
+
+        trajectory = run_episode(env, PolicyAgent(recording if by_mode else policy, "validation"), arena)
+        success = int(outcome_rates([trajectory.outcome])["success_rate"])
+        actions = getattr(trajectory, "actions", None)
+        if by_mode and actions is not None and len(actions) == len(seen):
+            driven_before[arena] = (seen, [int(a) for a in actions], success)
+        return success
 
     def score(best: float | None = None) -> tuple[float, int]:
-        agent = PolicyAgent(model_policy(model, record, sampled=None, seed=seed, shares=True), "validation")
+        policy = model_policy(model, record, sampled=None, seed=seed, shares=True)
         cut = VALIDATION_CUT and best is not None and best == best  # a NaN best is replaced by any score
         needed = round(best * len(seeds)) if cut else None
         successes = 0
-        for driven, arena in enumerate(seeds, start=1):
-            # counted as the tests' metrics count it (data.outcomes)
-            successes += int(outcome_rates([run_episode(env, agent, arena).outcome])["success_rate"])
-            reachable = successes + len(seeds) - driven
+        for scored, arena in enumerate(seeds, start=1):
+            successes += outcome(policy, arena)
+            reachable = successes + len(seeds) - scored
             if needed is not None and reachable < needed:
-                return reachable / len(seeds), driven
+                return reachable / len(seeds), scored
         return successes / len(seeds), len(seeds)
 
+    score.reused = 0
     return score
 
 
 VALIDATION_CUT = True
 """Whether ``validation_success`` stops driving a checkpoint that can no longer reach the best score
 so far (:func:`_validation_scorer`); the selection is the same either way (a test checks it)."""
+VALIDATION_REUSE = True
+"""Whether ``validation_success`` reuses the outcome of an arena whose episode a policy acting by its
+mode would drive again (:func:`_validation_scorer`); the scores are the same either way (a test
+checks it)."""
 
 
 def _clear_rl_run(run: RunDir) -> None:
@@ -505,7 +538,7 @@ def train_rl(
                 entry = {"steps": steps_now, "score": score, "episodes": over.get(selection, len(outcomes))}
                 if driven is not None and driven < entry["episodes"]:
                     # cut short, it cannot be kept: no score, the most it could have reached, the
-                    # arenas driven
+                    # arenas scored
                     entry.update(score=None, at_most=score, driven=driven)
                 record["scores"] = [*record.get("scores", []), entry]
                 unscored = best is not None and best["score"] != best["score"]  # NaN: any score replaces it
@@ -725,18 +758,22 @@ def load_rl_policy(
     return model_policy(model, record, sampled, seed, shares), record
 
 
+def _samples(record: dict, sampled: bool | None) -> bool:
+    """Whether :func:`model_policy` draws each action (a discrete PPO policy, ``sampled`` or, if None,
+    the run's ``act``) rather than taking its mode."""
+    if sampled is None:
+        sampled = record.get("config", {}).get("act", "sampled") == "sampled"
+    discrete = record["task"]["control"].get("actions", "discrete") == "discrete"
+    return sampled and discrete and record["algo"] != "dqn"
+
+
 def model_policy(
     model: Any, record: dict, sampled: bool | None, seed: int, shares: bool
 ) -> Callable[[np.ndarray], int | np.ndarray]:
     """``model``'s policy on phi(s) as :func:`load_rl_policy` describes it (``record``: its run's, or
     any dict with the ``algo``, the task's ``control.actions`` and, where set, ``config.act``)."""
-    if sampled is None:
-        sampled = record.get("config", {}).get("act", "sampled") == "sampled"
     code, _ = observation_code(record.get("config", {}))
-    discrete_ppo = (
-        record["algo"] != "dqn" and record["task"]["control"].get("actions", "discrete") == "discrete"
-    )
-    if sampled and discrete_ppo:
+    if _samples(record, sampled):
         import torch
 
         rng = np.random.default_rng(seed)
