@@ -616,6 +616,11 @@ def test_validation_reuses_an_arena_only_where_the_policy_would_drive_it_again(t
     first = scorer(None)
     assert scorer.reused == 0 and first[1] == 3
     assert scorer(None) == first and scorer.reused == 3  # the same policy: nothing driven again
+    with torch.no_grad():  # other weights, the same greedy actions (every Q-value doubled)
+        for parameter in model.q_net.q_net[-1].parameters():
+            parameter.mul_(2.0)
+    assert scorer(None) == first and scorer.reused == 6
+    assert rl._validation_scorer(model, record, OPEN, 0)(None) == first
     # another policy: one action in every state, none of those the first took first
     env, policy = make_env(OPEN), rl.model_policy(model, record, None, 0, shares=True)
     firsts = {
@@ -627,8 +632,8 @@ def test_validation_reuses_an_arena_only_where_the_policy_would_drive_it_again(t
         layer.weight.zero_()
         layer.bias.copy_(torch.eye(6, dtype=layer.bias.dtype)[only])
     changed = scorer(None)
-    assert scorer.reused == 3 and changed == rl._validation_scorer(model, record, OPEN, 0)(None)
-    assert scorer(None) == changed and scorer.reused == 6  # and then its own episodes are reused
+    assert scorer.reused == 6 and changed == rl._validation_scorer(model, record, OPEN, 0)(None)
+    assert scorer(None) == changed and scorer.reused == 9  # and then its own episodes are reused
 
 
 def test_reused_validation_episodes_leave_every_score_and_model_as_driving_them_does(tmp_path, monkeypatch):
