@@ -745,6 +745,37 @@ def test_dqn_explores_over_the_same_decisions_at_half_the_budget_and_twice_the_f
     assert config["validation_arenas"] == 50 and "validation_arenas" not in rl._model_settings(config)
 
 
+def test_checkpoint_every_scores_fewer_checkpoints_of_the_same_training(tmp_path, monkeypatch):
+    """Checkpoints never change the training: every other checkpoint gives the same scores there
+    and the same final model; the setting is the run's (recorded; the default written out is not)."""
+    from helpers import OPEN
+
+    from nirl_mj.experiments import rl
+    from nirl_mj.sim import spec
+
+    monkeypatch.setattr(rl, "VALIDATION_CUT", False)  # every checkpoint scored in full
+    near = spec.replace(OPEN, arena={"target": (9.0, 9.0)}, control={"step_budget": 30})  # some arrive
+    changes = {"validation_arenas": 6}  # sampled actions: validation draws them (its own stream)
+    kw = {"seed": 3, "envs": 2, "selection": "validation_success"}
+    every = rl.train_rl(tmp_path / "every", near, "ppo", 1024, checkpoint_every=256, changes=changes, **kw)
+    fewer_changes = {**changes, "checkpoint_every": 512}
+    fewer = rl.train_rl(tmp_path / "fewer", near, "ppo", 1024, changes=fewer_changes, **kw)
+    assert fewer["config"]["checkpoint_every"] == 512 and "checkpoint_every" not in every["config"]
+    scores = [(s["steps"], s["score"]) for s in every["scores"]]
+    assert len({score for _, score in scores}) > 1  # scores that can tell checkpoints apart
+    assert [(s["steps"], s["score"]) for s in fewer["scores"]] == [scores[1], scores[3]]
+    model = rl._algorithm("ppo").load(tmp_path / "every" / rl.MODEL_FILE, device="cpu")
+    assert rl._same_as_saved(rl.RunDir(tmp_path / "fewer"), model, None)
+    assert rl.run_config("ppo", "last", 2, {"checkpoint_every": rl.CHECKPOINT_EVERY}) == rl.run_config(
+        "ppo", "last", 2
+    )
+    with pytest.raises(ValueError, match="envs = 3: must be >= 1 and divide the 512 decisions"):
+        rl.run_config("dqn", "last", 3, {"checkpoint_every": 512})
+    with pytest.raises(ValueError, match="checkpoint_every is given twice"):
+        rl.train_rl(tmp_path / "twice", OPEN, "ppo", 512, checkpoint_every=256,
+                    changes={"checkpoint_every": 512}, **kw)  # fmt: skip
+
+
 @pytest.mark.parametrize("algo", ["gail", "airl-absorbing"])
 def test_gail_and_airl_may_see_phi_as_nirls_bearing_code_policy_and_discriminator_alike(tmp_path, algo):
     from helpers import OPEN

@@ -117,16 +117,20 @@ def default_selection(algo: str) -> str:
 TUNABLE = {"learning_rate": (float, 0.0, None), "n_epochs": (int, 1, None), "batch_size": (int, 2, None),
            "ent_coef": (float, None, None), "clip_range": (float, 0.0, None), "gae_lambda": (float, 0.0, 1.0),
            "gamma": (float, 0.0, 1.0), "target_kl": (float, 0.0, None),
-           "validation_arenas": (int, 1, None)}  # fmt: skip
+           "validation_arenas": (int, 1, None), "checkpoint_every": (int, 1, None)}  # fmt: skip
 """PPO's settings an experiment may change (``[method.NAME] settings = {...}``): (type, lowest, highest);
 a float's lowest is excluded (an int's included), ``ent_coef`` is any number >= 0; and the words of
 :data:`CHOICES`. ``validation_arenas`` is the selection's, not PPO's: the arenas
 ``validation_success`` drives every checkpoint on (default :data:`VALIDATION_ARENAS`; the first
-:data:`VALIDATION_ARENAS` are the default's)."""
-TUNABLE_DQN = {"exploration_fraction": (float, 0.0, 1.0), "validation_arenas": TUNABLE["validation_arenas"]}
+:data:`VALIDATION_ARENAS` are the default's). ``checkpoint_every``, the decisions between
+checkpoints (default :data:`CHECKPOINT_EVERY`; a multiple of ``envs``): the selection scores fewer
+checkpoints of the same training (checkpoints never change it)."""
+TUNABLE_DQN = {"exploration_fraction": (float, 0.0, 1.0), "validation_arenas": TUNABLE["validation_arenas"],
+               "checkpoint_every": TUNABLE["checkpoint_every"]}  # fmt: skip
 """DQN's settings an experiment may change, as :data:`TUNABLE`'s: ``exploration_fraction``, the part
 of the run's decisions over which epsilon falls from 1 to 0.05 (0.2 of 100,000 by default: 0.4 of
-50,000 explores over the same first 20,000 decisions)."""
+50,000 explores over the same first 20,000 decisions); ``validation_arenas`` and ``checkpoint_every``
+as PPO's."""
 CHOICES = {
     "lr_schedule": ("constant", "linear"),
     "act": ("sampled", "greedy"),
@@ -190,10 +194,13 @@ def run_config(
     if selection == "demo_balanced" and algo not in ADVERSARIAL:
         raise ValueError(f"selection demo_balanced reads demonstrations; {algo} has none: use "
                          "training_success, validation_success or last")  # fmt: skip
-    if envs < 1 or CHECKPOINT_EVERY % envs:
-        raise ValueError(f"envs = {envs}: must be >= 1 and divide the {CHECKPOINT_EVERY} decisions between "
-                         "checkpoints")  # fmt: skip
     config = {"algo": algo, **SETTINGS[algo], **tuned(algo, changes or {})}
+    every = config.get("checkpoint_every", CHECKPOINT_EVERY)
+    if envs < 1 or every % envs:
+        raise ValueError(f"envs = {envs}: must be >= 1 and divide the {every} decisions between "
+                         "checkpoints")  # fmt: skip
+    if every == CHECKPOINT_EVERY:  # the default: the default's identity
+        config.pop("checkpoint_every", None)
     if "validation_arenas" in config and selection != "validation_success":
         raise ValueError(
             f"settings.validation_arenas goes with selection validation_success, not {selection}"
@@ -278,7 +285,7 @@ def _model_settings(config: dict) -> dict:
     """The keyword arguments of the algorithm's constructor from a run's config: its own keys
     dropped, ``lr_schedule`` turned into the learning rate's schedule."""
     own = ("algo", "selection", "envs", "discriminator", "lr_schedule", "train_drive", "act",
-           "validation_arenas", "inputs")  # fmt: skip
+           "validation_arenas", "checkpoint_every", "inputs")  # fmt: skip
     settings = {k: v for k, v in config.items() if k not in own}
     if config.get("lr_schedule") == "linear":
         from stable_baselines3.common.utils import LinearSchedule
@@ -381,7 +388,7 @@ def train_rl(
     steps: int = DEFAULT_STEPS,
     seed: int = 0,
     resume: bool = False,
-    checkpoint_every: int = CHECKPOINT_EVERY,
+    checkpoint_every: int | None = None,
     on_steps: Callable[[int, dict], None] | None = None,
     demos: str | os.PathLike | None = None,
     selection: str | None = None,
@@ -419,6 +426,9 @@ def train_rl(
         train_drive = saved_config.get("train_drive", "") if train_drive is None else train_drive
     selection, envs = selection or default_selection(algo), envs or LEGACY["envs"]
     config = run_config(algo, selection, envs, changes, train_drive or "")
+    if checkpoint_every is not None and "checkpoint_every" in config:
+        raise ValueError("checkpoint_every is given twice (argument and settings.checkpoint_every): give one")
+    checkpoint_every = config.get("checkpoint_every", checkpoint_every or CHECKPOINT_EVERY)
     if checkpoint_every % envs:
         raise ValueError(f"checkpoint_every = {checkpoint_every}: must be a multiple of envs = {envs}")
     adversarial = algo in ADVERSARIAL
