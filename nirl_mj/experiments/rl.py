@@ -428,9 +428,10 @@ def train_rl(
     config = run_config(algo, selection, envs, changes, train_drive or "")
     if checkpoint_every is not None and "checkpoint_every" in config:
         raise ValueError("checkpoint_every is given twice (argument and settings.checkpoint_every): give one")
-    checkpoint_every = config.get("checkpoint_every", checkpoint_every or CHECKPOINT_EVERY)
-    if checkpoint_every % envs:
-        raise ValueError(f"checkpoint_every = {checkpoint_every}: must be a multiple of envs = {envs}")
+    if checkpoint_every is None:
+        checkpoint_every = config.get("checkpoint_every", CHECKPOINT_EVERY)
+    if checkpoint_every < 1 or checkpoint_every % envs:
+        raise ValueError(f"checkpoint_every = {checkpoint_every}: must be >= 1, a multiple of envs = {envs}")
     adversarial = algo in ADVERSARIAL
     if adversarial and demos is None:
         raise ValueError(f"{algo} imitates demonstrations: give --demos (a dataset)")
