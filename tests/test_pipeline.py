@@ -45,8 +45,16 @@ def test_main_job_writes_report_results_and_recording(tmp_path, capsys):
     before = (out / "demos.npz").read_bytes()
     assert main(args) == 2
     assert "pass --resume" in capsys.readouterr().err
+    kept = {name: (out / name).stat().st_mtime_ns for name in ("results.json", "report.md", "run.rrd")}
     assert main([*args, "--resume"]) == 0
     assert (out / "demos.npz").read_bytes() == before
+    # finished: its results, report and recording are kept, not written again
+    assert {name: (out / name).stat().st_mtime_ns for name in kept} == kept
+    assert "had finished" in capsys.readouterr().err
+    # a report that was lost is written again by the same command
+    (out / "report.md").unlink()
+    assert main([*args, "--resume"]) == 0
+    assert "| NIRL |" in (out / "report.md").read_text()
 
 
 def test_train_then_eval_from_the_command_line(tmp_path, capsys, monkeypatch):

@@ -162,16 +162,31 @@ def main_job(
     methods = {m.name: m for m in experiment.methods}
     results = {ROWS[name]: {**report.results[name], "reads": method_reads(methods[name], experiment.config)}
                for name in ROWS}  # fmt: skip
+    text = json.dumps({"task": task.name, "seed": experiment.seed, "results": results}, indent=1)
+    if _finished(out, text):
+        # A resume of a finished job: its report and recording (written last) already hold these
+        # results; writing them again would take half a minute and change nothing.
+        log(f"the main job in {out} had finished: its report and recording are kept as they are")
+        return results
     paths = {ROWS[name]: load_dataset(out / "tests" / f"{name}.npz") for name in ROWS}
-    write_text(
-        out / "results.json",
-        json.dumps({"task": task.name, "seed": experiment.seed, "results": results}, indent=1),
-    )
+    write_text(out / "results.json", text)
     nirl = RunDir(jobs["NIRL", 0].run_dir)
     demo_trajectories = load_dataset(out / "demos.npz")
     write_report(out, nirl, experiment, results, paths, len(demo_trajectories))
     record_main_job(out, nirl, out / "run.rrd", overwrite=True)  # the job's own, made again from its files
     return results
+
+
+def _finished(out: Path, results_text: str) -> bool:
+    """Whether the main job in ``out`` was written to the end with these results: ``results.json``
+    holds ``results_text`` and the report and the recording (written after it, in that order) exist."""
+    stored = out / "results.json"
+    return (
+        stored.is_file()
+        and stored.read_text() == results_text
+        and (out / "report.md").is_file()
+        and (out / "run.rrd").is_file()
+    )
 
 
 @writes("main job report")  # one writer of OUT
