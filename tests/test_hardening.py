@@ -276,7 +276,8 @@ def test_an_output_or_a_resume_of_the_wrong_kind_is_refused_by_name(tmp_path, ca
 def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path, capsys, datasets):
     """An unknown option prints the command's usage (not the top level's); --workers with the serial
     executor or with a Ray cluster's address, --train-seed without --policy bc and --demos with --run are
-    refused by name, not ignored; an input error draws no empty progress bar."""
+    refused by name, not ignored; a dataset given to run's --demos says where it goes; an input error
+    draws no empty progress bar."""
     with pytest.raises(SystemExit):
         main(["sweep", "--only", "NIRL"])
     err = capsys.readouterr().err
@@ -299,6 +300,10 @@ def test_a_flag_the_command_would_ignore_is_refused_under_its_own_usage(tmp_path
     with pytest.raises(SystemExit):
         main([*render, "--fps", "0"])
     assert "--fps: expected a frame rate > 0, got 0" in capsys.readouterr().err
+    # run's --demos counts what it records, where train's names a dataset: a path says where it goes
+    with pytest.raises(SystemExit):
+        main(["run", "--demos", str(datasets[0]), "--out", str(tmp_path / "m")])
+    assert "nirl-mj train --demos PATH" in capsys.readouterr().err and not (tmp_path / "m").exists()
     # an experiment file given as a task names what it is; a refused command leaves no folder behind
     refused(capsys, ["task", "tasks/table1.toml"], "is an experiment (kind = 'compare'), not a task")
     # an override is checked as every command checks it

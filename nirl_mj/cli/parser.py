@@ -41,6 +41,18 @@ _seed = _number(int, 0, SEED_LIMIT - 1, "a seed, a whole number in 0 .. 2^32 - 1
 _workers = _number(int, 1, 1024, "a number of processes in 1 .. 1024")
 
 
+def _demo_count(text: str) -> int:
+    """``run --demos``: how many demonstrations the main job records (where ``train``, ``rl`` and
+    ``eval`` take a dataset's path under the same name)."""
+    try:
+        return _positive_int(text)
+    except argparse.ArgumentTypeError as error:
+        raise argparse.ArgumentTypeError(
+            f"{error}: the main job records its own demonstrations and --demos counts them; to learn "
+            "from a dataset, nirl-mj train --demos PATH (then nirl-mj eval --run)"
+        ) from None
+
+
 OVERWRITE_RERUN = (
     "overwrite=an existing --rerun file (a run in --out is continued with --resume, never replaced)"
 )
@@ -161,7 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the demonstrations, the training and the test arenas (default: 0)")
     p.add_argument("--variant", choices=VARIANTS, default="default", help="NIRL's preset (default: default)")
-    p.add_argument("--demos", type=_positive_int, default=30, help="demonstrations to record (default: 30)")
+    p.add_argument("--demos", type=_demo_count, default=30, metavar="N",
+                   help="demonstrations to record (default: 30; a dataset: nirl-mj train --demos PATH)")
     p.add_argument("--expert", choices=EXPERT_KINDS, default="sensor", help="demonstrator (default: sensor)")
     p.add_argument("--episodes", **iterations)
     p.add_argument("--tests", type=_positive_int, default=100, help="held-out test arenas (default: 100)")
