@@ -348,8 +348,9 @@ def test_the_readme_table_of_what_each_method_reads_is_the_code_s():
 # -- GAIL and AIRL: the task's reward and outcome never reach their training --------------------------
 
 
-def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -> dict:
-    """Two PPO rollouts (2 x 1,024 decisions, a checkpoint after each) of ``algo`` on OPEN; with
+def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch, row: str = "") -> dict:
+    """Two PPO rollouts (2 x 1,024 decisions, a checkpoint after each) of ``algo`` on OPEN (or of
+    built-in method ``row``: its algorithm, selection, environments and settings); with
     ``scrambled`` every step of the environment hands out a random reward and the opposite outcome
     (``info``). The last policy's and the discriminator's weights, the checkpoint the run's selection
     kept (its score and decisions) and that checkpoint's weights: what its tests drive."""
@@ -371,9 +372,13 @@ def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -
     with monkeypatch.context() as patch:
         if scrambled:
             patch.setattr(NavigationEnv, "step", scramble)
-        out = tmp_path / f"{algo}-{scrambled}"
-        record = train_rl(out, OPEN, algo, 2048, seed=0, demos=demos if algo != "ppo" else None,
-                          checkpoint_every=1024)  # fmt: skip
+        out = tmp_path / f"{row or algo}-{scrambled}"
+        kwargs = {}
+        if row:  # the row's algorithm (algo names it too), selection, environments and settings
+            method = BUILTIN_METHODS[row]
+            kwargs = {"selection": method.selection, "envs": method.envs, "changes": method.settings}
+        demos = demos if algo != "ppo" else None
+        record = train_rl(out, OPEN, algo, 2048, seed=0, demos=demos, checkpoint_every=1024, **kwargs)
 
     def policy(path):
         return {k: v.numpy() for k, v in PPO.load(path, device="cpu").policy.state_dict().items()}
@@ -390,9 +395,10 @@ def _adversarial_run(tmp_path, algo: str, demos, scrambled: bool, monkeypatch) -
 
 
 def test_gail_and_airl_are_blind_to_the_task_reward_and_outcome(tmp_path, monkeypatch):
-    """GAIL and AIRL (with the absorbing state, which reads episode ends) end in the same policy and
-    discriminator, bit for bit, when every step's reward and outcome are scrambled; PPO on the reward
-    does not (the test can fail)."""
+    """GAIL and AIRL, as Table I's rows run them (GAIL, GAIL-linear-last, AIRL: their selection,
+    environments and settings) and with the absorbing state (which reads episode ends), end in the
+    same policy and discriminator, bit for bit, when every step's reward and outcome are scrambled;
+    PPO on the reward does not (the test can fail)."""
     pytest.importorskip("stable_baselines3")
     from helpers import OPEN
 
@@ -401,12 +407,15 @@ def test_gail_and_airl_are_blind_to_the_task_reward_and_outcome(tmp_path, monkey
 
     demos = tmp_path / "demos.npz"
     save_dataset(demos, collect(OPEN, ExpertConfig("rule"), episodes=2, seed=0))
-    for algo in ("gail", "airl-absorbing"):
-        same = _adversarial_run(tmp_path, algo, demos, False, monkeypatch)
-        scrambled = _adversarial_run(tmp_path, algo, demos, True, monkeypatch)
-        assert any(k.startswith("disc_") for k in same) and "selected" in same, algo
+    rows = [("gail", "GAIL"), ("gail", "GAIL-linear-last"), ("airl", "AIRL"), ("airl-absorbing", "")]
+    for algo, row in rows:
+        assert not row or BUILTIN_METHODS[row].algo == algo, row
+        same = _adversarial_run(tmp_path, algo, demos, False, monkeypatch, row)
+        scrambled = _adversarial_run(tmp_path, algo, demos, True, monkeypatch, row)
+        assert any(k.startswith("disc_") for k in same), row or algo
+        assert ("selected" in same) == (row != "GAIL-linear-last"), row or algo  # its last: none chosen
         for key in same:
-            np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"{algo}: {key}")
+            np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"{row or algo}: {key}")
     ppo = _adversarial_run(tmp_path, "ppo", None, False, monkeypatch)
     ppo_scrambled = _adversarial_run(tmp_path, "ppo", None, True, monkeypatch)
     assert any(not np.array_equal(ppo[k], ppo_scrambled[k]) for k in ppo)

@@ -7,7 +7,8 @@ collision is rewarded (the termination bias of adversarial imitation with termin
 et al. 2019). This script measures that on a trained AIRL run of a compare experiment.
 
     python docs/scripts/airl_rewards.py OUT [RUN ...] [--method AIRL-absorbing]
-    (OUT: the experiment's --out; default run 0; --method: the row, default AIRL)
+    (OUT: the experiment's --out; default run 0, whose seed names its run directory and, with
+    demonstrations drawn per run, its OUT/demos/runNNN.npz; --method: the row, default AIRL)
 
 GAIL's reward is softplus of the logit, always positive. Prints, per run: the mean reward per
 decision on 20 of its own training-arena episodes (sampled actions, as trained) and on the
@@ -45,8 +46,10 @@ def rewards_of(reward: AdversarialReward, trajectories, code) -> np.ndarray:
 
 
 def main(out: Path, runs: list[int], method: str = "AIRL") -> None:
-    demos = load_dataset(out / "demos.npz")
     for r in runs:
+        # demonstrations drawn per run (OUT/demos/runNNN.npz), or one set for every run (OUT/demos.npz)
+        shared = out / "demos.npz"
+        demos = load_dataset(shared if shared.is_file() else out / "demos" / f"run{r:03d}.npz")
         run_dir = out / "runs" / method / str(r)
         record = RunDir(run_dir).read_record()
         policy, _ = load_rl_policy(run_dir, seed=r)
