@@ -240,6 +240,26 @@ def test_rl_free_actions_reads_each_free_state_by_sector_and_flag():
     assert line == "FFFFFFFFF | FllLLRRrr"
 
 
+def test_cycle_coverage_reads_the_cycles_of_a_timeouts_file_in_the_text_of_phi():
+    """docs/scripts/cycle_coverage.py: the (state, action) pairs of a timeouts.py output, counted once
+    per cycle, in the text that ``phi_text`` writes for a demonstrated phi(s) (so the two meet); run
+    16 of the unseen seeds orbits in sectors 3 and 4, as docs/RESULTS.md says."""
+    import numpy as np
+
+    from nirl_mj.inspect.text import phi_text
+
+    cycle_pairs = runpy.run_path(str(ROOT / "docs" / "scripts" / "cycle_coverage.py"))["cycle_pairs"]
+    stored = (ROOT / "docs" / "results" / "table1_fresh" / "timeouts-NIRL-run16.txt").read_text()
+    orbit = {("D 0000000 V 3 I 1 U 0000000", "left30"): 16, ("D 0000000 V 4 I 1 U 0000000", "left60"): 7}
+    assert cycle_pairs(stored) == orbit
+    phi = np.zeros(16)
+    phi[7], phi[8] = 3, 1
+    assert phi_text(phi) == "D 0000000 V 3 I 1 U 0000000"
+    line = "arena 1: timeout in a cycle of 2 (forward, backward) over 30 decisions; states: D 1000000 V 1 I 0"
+    with pytest.raises(ValueError, match="2 actions lists 1 states"):
+        cycle_pairs(line)
+
+
 def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):
     """docs/scripts/suite_versus.py: first minus second per (axis, value) over the runs both hold, on a
     hand-computed case; the stored suites and their decaying-step predecessors share BC's rows
