@@ -240,24 +240,52 @@ def test_rl_free_actions_reads_each_free_state_by_sector_and_flag():
     assert line == "FFFFFFFFF | FllLLRRrr"
 
 
-def test_cycle_coverage_reads_the_cycles_of_a_timeouts_file_in_the_text_of_phi():
+def test_cycle_coverage_counts_the_cycle_pairs_the_demonstrations_show_and_agree_with(
+    tmp_path, monkeypatch, capsys
+):
     """docs/scripts/cycle_coverage.py: the (state, action) pairs of a timeouts.py output, counted once
-    per cycle, in the text that ``phi_text`` writes for a demonstrated phi(s) (so the two meet); run
-    16 of the unseen seeds orbits in sectors 3 and 4, as docs/RESULTS.md says."""
+    per cycle, joined with the demonstrated pairs by the text ``phi_text`` writes for phi(s); a
+    hand-built dataset where one cycle state is demonstrated with the policy's action, one with
+    another, one not at all (3 pairs, 2 demonstrated, 1 agreeing). The stored replay of the unseen
+    seeds' run 16 reads as an orbit in sectors 3 and 4."""
     import numpy as np
 
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.data.trajectory import Trajectory
     from nirl_mj.inspect.text import phi_text
+    from nirl_mj.sim import spec
 
-    cycle_pairs = runpy.run_path(str(ROOT / "docs" / "scripts" / "cycle_coverage.py"))["cycle_pairs"]
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "cycle_coverage.py"))
     stored = (ROOT / "docs" / "results" / "table1_fresh" / "timeouts-NIRL-run16.txt").read_text()
     orbit = {("D 0000000 V 3 I 1 U 0000000", "left30"): 16, ("D 0000000 V 4 I 1 U 0000000", "left60"): 7}
-    assert cycle_pairs(stored) == orbit
-    phi = np.zeros(16)
-    phi[7], phi[8] = 3, 1
-    assert phi_text(phi) == "D 0000000 V 3 I 1 U 0000000"
-    line = "arena 1: timeout in a cycle of 2 (forward, backward) over 30 decisions; states: D 1000000 V 1 I 0"
+    assert script["cycle_pairs"](stored) == orbit
+
+    states = np.zeros((4, 16), np.float32)
+    states[:, 7] = 1
+    states[:3, 0] = [3, 1, 2]  # danger ahead 3, 1, 2; the final state unused
+    texts = [phi_text(phi) for phi in states[:3]]
+    assert texts[0] == "D 3000000 V 1 I 0 U 0000000"
+    demo = Trajectory(features=states, actions=np.array([0, 0, 5], np.int8), ranges=np.zeros((4, 9)),
+                      poses=np.zeros((4, 3)), times=np.arange(4) * 0.5, arena_seed=1,
+                      task=spec.load_task("navigate").to_dict(), speed=2.0, outcome="target",
+                      demonstrator="sensor")  # fmt: skip
+    demos = save_dataset(tmp_path / "demos.npz", [demo])
+    cycle = ("D 3000000 V 1 I 0 U 0000000", "D 4000000 V 1 I 0 U 0000000", "D 1000000 V 1 I 0 U 0000000")
+    timeouts = tmp_path / "timeouts.txt"
+    timeouts.write_text(
+        "arena 0: timeout in a cycle of 3 (backward, backward, forward) over its last 30 decisions, "
+        f"within 1.0 m, r_theta +0.1 per decision; states: {'; '.join(cycle)}\n"
+    )
+    monkeypatch.setattr("sys.argv", ["cycle_coverage.py", str(timeouts), str(demos)])
+    script["main"]()
+    out = capsys.readouterr().out
+    assert "D 3000000 V 1 I 0 U 0000000: policy backward (in 1 cycles); expert: forward 1" in out
+    assert "D 4000000 V 1 I 0 U 0000000: policy backward (in 1 cycles); expert: never demonstrated" in out
+    assert "3 (state, action) pairs in the cycles: 2 in demonstrated states, 1 of those" in out
     with pytest.raises(ValueError, match="2 actions lists 1 states"):
-        cycle_pairs(line)
+        script["cycle_pairs"](
+            "timeout in a cycle of 2 (forward, backward) over 30 decisions; states: D 1000000 V 1 I 0"
+        )
 
 
 def test_suite_versus_pairs_two_suite_csvs_by_point_and_run(tmp_path):

@@ -19,6 +19,7 @@ import numpy as np
 
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.features import ACTION_NAMES
+from nirl_mj.data.trajectory import require_discrete
 from nirl_mj.inspect.text import phi_text
 
 _CYCLE = re.compile(r"in a cycle of \d+ \(([^)]*)\).*states: (.*)$")
@@ -49,6 +50,10 @@ def main() -> None:
     if not pairs:
         raise SystemExit(f"{args.timeouts}: no cycle found (expected lines of docs/scripts/timeouts.py)")
     trajectories = load_dataset(args.demos)
+    try:
+        require_discrete(trajectories, args.demos)
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
     phi = np.concatenate([t.features[:-1] for t in trajectories])
     actions = np.concatenate([t.actions for t in trajectories])
     shown: dict[str, Counter] = {}
@@ -56,15 +61,16 @@ def main() -> None:
         shown.setdefault(phi_text(row), Counter())[ACTION_NAMES[int(action)]] += 1
     print(f"{args.demos}: {len(actions)} demonstrated pairs; the cycles of {args.timeouts}:")
     demonstrated = agreeing = 0
-    for (state, action), cycles in sorted(pairs.items(), key=lambda kv: -kv[1]):
+    for (state, action), cycles in sorted(pairs.items(), key=lambda kv: (-kv[1], kv[0])):
         expert = shown.get(state, Counter())
         seen = ", ".join(f"{a} {n}" for a, n in expert.most_common()) or "never demonstrated"
         print(f"  {state}: policy {action} (in {cycles} cycles); expert: {seen}")
         demonstrated += bool(expert)
-        agreeing += bool(expert) and expert.most_common(1)[0][0] == action
+        # a tie among the expert's most frequent actions counts as agreeing with any of them
+        agreeing += bool(expert) and expert[action] == max(expert.values())
     print(
         f"{len(pairs)} (state, action) pairs in the cycles: {demonstrated} in demonstrated states, "
-        f"{agreeing} of those the expert's most frequent action there"
+        f"{agreeing} of those the expert's most frequent action there (or one of those tied)"
     )
 
 
