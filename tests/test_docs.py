@@ -244,10 +244,10 @@ def test_cycle_coverage_counts_the_cycle_pairs_the_demonstrations_show_and_agree
     tmp_path, monkeypatch, capsys
 ):
     """docs/scripts/cycle_coverage.py: the (state, action) pairs of a timeouts.py output, counted once
-    per cycle, joined with the demonstrated pairs by the text ``phi_text`` writes for phi(s); a
-    hand-built dataset where one cycle state is demonstrated with the policy's action, one with
-    another, one not at all (3 pairs, 2 demonstrated, 1 agreeing). The stored replay of the unseen
-    seeds' run 16 reads as an orbit in sectors 3 and 4."""
+    per cycle, joined with the demonstrated pairs by the text ``phi_text`` writes for phi(s), in a
+    fixed order; on a hand-built dataset: 4 pairs (one in two cycles), 3 demonstrated (one where the
+    expert's actions tie), 2 agreeing (the tie counts). The stored replay of the unseen
+    seeds' run 16 reads as an orbit in sectors 3 and 4; a dataset of continuous actions is refused."""
     import numpy as np
 
     from nirl_mj.data.dataset import save_dataset
@@ -260,28 +260,42 @@ def test_cycle_coverage_counts_the_cycle_pairs_the_demonstrations_show_and_agree
     orbit = {("D 0000000 V 3 I 1 U 0000000", "left30"): 16, ("D 0000000 V 4 I 1 U 0000000", "left60"): 7}
     assert script["cycle_pairs"](stored) == orbit
 
-    states = np.zeros((4, 16), np.float32)
-    states[:, 7] = 1
-    states[:3, 0] = [3, 1, 2]  # danger ahead 3, 1, 2; the final state unused
-    texts = [phi_text(phi) for phi in states[:3]]
-    assert texts[0] == "D 3000000 V 1 I 0 U 0000000"
-    demo = Trajectory(features=states, actions=np.array([0, 0, 5], np.int8), ranges=np.zeros((4, 9)),
-                      poses=np.zeros((4, 3)), times=np.arange(4) * 0.5, arena_seed=1,
-                      task=spec.load_task("navigate").to_dict(), speed=2.0, outcome="target",
-                      demonstrator="sensor")  # fmt: skip
-    demos = save_dataset(tmp_path / "demos.npz", [demo])
-    cycle = ("D 3000000 V 1 I 0 U 0000000", "D 4000000 V 1 I 0 U 0000000", "D 1000000 V 1 I 0 U 0000000")
+    def dataset(name: str, actions: np.ndarray, kind: str = "discrete") -> str:
+        task = spec.apply_overrides(spec.load_task("navigate"), [f"control.actions={kind}"]).to_dict()
+        states = np.zeros((5, 16), np.float32)
+        states[:, 7] = 1
+        states[:4, 0] = [3, 1, 2, 2]  # danger ahead 3, 1, 2, 2; the final state unused
+        demo = Trajectory(features=states, actions=actions, ranges=np.zeros((5, 9)), poses=np.zeros((5, 3)),
+                          times=np.arange(5) * 0.5, arena_seed=1, task=task, speed=2.0, outcome="target",
+                          demonstrator="sensor")  # fmt: skip
+        return str(save_dataset(tmp_path / name, [demo]))
+
+    # forward, forward, backward, forward: the expert ties backward and forward at danger 2
+    demos = dataset("demos.npz", np.array([0, 0, 5, 0], np.int8))
+    d = {level: phi_text(np.array([level, *[0] * 6, 1, *[0] * 8])) for level in (1, 2, 3, 4)}
+    assert d[3] == "D 3000000 V 1 I 0 U 0000000"
     timeouts = tmp_path / "timeouts.txt"
     timeouts.write_text(
         "arena 0: timeout in a cycle of 3 (backward, backward, forward) over its last 30 decisions, "
-        f"within 1.0 m, r_theta +0.1 per decision; states: {'; '.join(cycle)}\n"
+        f"within 1.0 m, r_theta +0.1 per decision; states: {d[3]}; {d[4]}; {d[1]}\n"
+        "arena 1: timeout in a cycle of 2 (forward, backward) over its last 30 decisions, "
+        f"within 1.0 m, r_theta +0.1 per decision; states: {d[1]}; {d[2]}\n"
     )
-    monkeypatch.setattr("sys.argv", ["cycle_coverage.py", str(timeouts), str(demos)])
+    monkeypatch.setattr("sys.argv", ["cycle_coverage.py", str(timeouts), demos])
     script["main"]()
-    out = capsys.readouterr().out
-    assert "D 3000000 V 1 I 0 U 0000000: policy backward (in 1 cycles); expert: forward 1" in out
-    assert "D 4000000 V 1 I 0 U 0000000: policy backward (in 1 cycles); expert: never demonstrated" in out
-    assert "3 (state, action) pairs in the cycles: 2 in demonstrated states, 1 of those" in out
+    assert capsys.readouterr().out.splitlines() == [
+        f"{demos}: 4 demonstrated pairs; the cycles of {timeouts}:",
+        f"  {d[1]}: policy forward (in 2 cycles); expert: forward 1",
+        f"  {d[2]}: policy backward (in 1 cycles); expert: backward 1, forward 1",
+        f"  {d[3]}: policy backward (in 1 cycles); expert: forward 1",
+        f"  {d[4]}: policy backward (in 1 cycles); expert: never demonstrated",
+        "4 (state, action) pairs in the cycles: 3 in demonstrated states, 2 of those the expert's most "
+        "frequent action there (or one of those tied)",
+    ]
+    continuous = dataset("continuous.npz", np.zeros((4, 2), np.float32), "continuous")
+    monkeypatch.setattr("sys.argv", ["cycle_coverage.py", str(timeouts), continuous])
+    with pytest.raises(SystemExit, match="continuous actions"):
+        script["main"]()
     with pytest.raises(ValueError, match="2 actions lists 1 states"):
         script["cycle_pairs"](
             "timeout in a cycle of 2 (forward, backward) over 30 decisions; states: D 1000000 V 1 I 0"
