@@ -15,11 +15,9 @@ import argparse
 import re
 from collections import Counter
 
-import numpy as np
-
 from nirl_mj.data.dataset import load_dataset
 from nirl_mj.data.features import ACTION_NAMES
-from nirl_mj.data.trajectory import require_discrete
+from nirl_mj.data.trajectory import require_discrete, stack_pairs
 from nirl_mj.inspect.text import phi_text
 
 _CYCLE = re.compile(r"in a cycle of \d+ \(([^)]*)\).*states: (.*)$")
@@ -54,8 +52,7 @@ def main() -> None:
         require_discrete(trajectories, args.demos)
     except ValueError as exc:
         raise SystemExit(str(exc)) from None
-    phi = np.concatenate([t.features[:-1] for t in trajectories])
-    actions = np.concatenate([t.actions for t in trajectories])
+    phi, actions = stack_pairs(trajectories)
     shown: dict[str, Counter] = {}
     for row, action in zip(phi, actions, strict=True):
         shown.setdefault(phi_text(row), Counter())[ACTION_NAMES[int(action)]] += 1
