@@ -43,11 +43,14 @@ def main() -> None:
     parser.add_argument("timeouts", help="a file written by docs/scripts/timeouts.py")
     parser.add_argument("demos", help="the run's demonstrations (.npz)")
     args = parser.parse_args()
-    with open(args.timeouts, encoding="utf-8") as f:
-        pairs = cycle_pairs(f.read())
+    try:
+        with open(args.timeouts, encoding="utf-8") as f:
+            pairs = cycle_pairs(f.read())
+        trajectories = load_dataset(args.demos)
+    except (OSError, ValueError) as exc:  # a missing file, a malformed cycle line or dataset
+        raise SystemExit(str(exc)) from None
     if not pairs:
         raise SystemExit(f"{args.timeouts}: no cycle found (expected lines of docs/scripts/timeouts.py)")
-    trajectories = load_dataset(args.demos)
     try:
         require_discrete(trajectories, args.demos)
     except ValueError as exc:
