@@ -406,3 +406,39 @@ def test_the_architecture_figure_shows_the_modules_as_they_are():
     with Image.open(ROOT / "docs" / "images" / "architecture.png") as image:
         drawn = json.loads(image.text["Description"])
     assert drawn == script["rooms"](), "run python docs/scripts/architecture_figure.py"
+
+
+def test_refit_last_starts_from_the_runs_last_iterate_and_fits_only_the_network(tmp_path):
+    """docs/scripts/refit_last.py: the learner rebuilt from a run's checkpoint acts as the run's last
+    iterate (``load_policy(run, "last")``) in every demonstrated state; a further round changes the
+    network and leaves theta, the replay window and the kept policies as they were."""
+    import numpy as np
+
+    from nirl_mj.data.dataset import save_dataset
+    from nirl_mj.experiments.demos import ExpertConfig, collect
+    from nirl_mj.experiments.training import load_policy, train
+    from nirl_mj.learn import network
+    from nirl_mj.learn.config import LearnerConfig
+    from nirl_mj.sim import spec
+
+    task = spec.replace(
+        spec.load_task("navigate"),
+        arena={"size": [16.0, 16.0], "start": [3.0, 3.0], "target": [13.0, 13.0], "static_obstacles": 2,
+               "clear_radius": 2.0},
+        robot={"drive": "planar"},
+    )  # fmt: skip
+    demos = tmp_path / "demos.npz"
+    save_dataset(demos, collect(task, ExpertConfig("sensor"), episodes=2, seed=0))
+    config = LearnerConfig.preset("default", episodes=3, trajectories_per_episode=2, replay_episodes=2)
+    train(tmp_path / "run", task, demos, config, seed=0)
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "refit_last.py"))
+    learner = script["last_iterate"](str(tmp_path / "run"), str(demos))
+    last, _ = load_policy(tmp_path / "run", "last")
+    greedy = network.greedy_actions(network.q_values(learner.net, learner.demo_inputs))
+    assert list(greedy) == [last(phi) for phi in learner.demo_phi]
+    before = network.get_weights(learner.net)
+    theta, pairs, kept = learner.theta.copy(), sum(len(t) for t in learner.replay), len(learner.kept)
+    script["refit"](learner, 1)
+    assert not np.array_equal(network.get_weights(learner.net)["W2"], before["W2"])
+    assert np.array_equal(learner.theta, theta) and len(learner.kept) == kept
+    assert sum(len(t) for t in learner.replay) == pairs

@@ -1,5 +1,5 @@
 """The inner learner's options, each on a hand-computed case: Q-learning targets, the network
-width, and Polyak averaging of the kept policy."""
+width, n-step targets, exploration, bearing inputs and value-fitting rounds."""
 
 import dataclasses
 
@@ -26,7 +26,8 @@ def demos() -> list[Trajectory]:
 
 
 def loop(**changes) -> IrlLoop:
-    config = LearnerConfig.preset("default", reward_source="constant", reward_scaling=False, **changes)
+    settings = {"reward_source": "constant", "reward_scaling": False, **changes}
+    config = LearnerConfig.preset("default", **settings)
     return IrlLoop(config, demos(), seed=0)
 
 
@@ -196,3 +197,40 @@ def test_a_learner_reads_the_loop_and_its_own_reward_steps_settings():
     assert al.replace(**changed).settings_read() == al.settings_read()
     assert nirl.replace(**changed).settings_read() != nirl.settings_read()
     assert al.replace(n_step=1).settings_read() != al.settings_read()
+
+
+def self_loop(n: int = 1) -> Transitions:
+    """``n`` copies of one pair that returns to its own state and takes the same action again."""
+    one = transitions(next_action=2, terminal=False)
+    return Transitions.concat([one] * n)
+
+
+def test_each_fitting_round_computes_its_targets_again_from_the_network():
+    # scaled rewards (0.05 a decision) keep the targets inside [0, 1], where they read the network
+    two, one = loop(fit_rounds=2, reward_scaling=True), loop(reward_scaling=True)
+    t = self_loop(4)
+    two._fit(t)
+    one._fit(t)  # the same network and draws: round 1, then round 2 on targets of the new network
+    one._fit(t)
+    for name, w in network.get_weights(two.net).items():
+        np.testing.assert_array_equal(w, network.get_weights(one.net)[name])
+    fixed = loop(net_epochs=8, reward_scaling=True)  # as many epochs on one set of targets: another network
+    fixed._fit(t)
+    assert not np.array_equal(network.get_weights(fixed.net)["W2"], network.get_weights(two.net)["W2"])
+
+
+def test_more_fitting_rounds_bring_a_self_loop_nearer_its_value():
+    # constant reward 1, scaled into [0, 1 - gamma] over [0, 2]: r = 0.05 a decision at gamma 0.9; the
+    # pair returns to itself (SARSA on its own action), so its value is r / (1 - gamma) = 0.5
+    def error(rounds: int) -> float:
+        learner = loop(fit_rounds=rounds, reward_scaling=True, bootstrap="sarsa", n_step=1)
+        learner._fit(self_loop(64))
+        return abs(network.q_values(learner.net, learner.demo_inputs[:1])[0, 2] - 0.5)
+
+    errors = [error(rounds) for rounds in (1, 4, 16)]
+    assert errors[0] > errors[1] > errors[2] and errors[2] < 0.5 * errors[0]
+
+
+def test_fitting_rounds_are_counted_from_one():
+    with pytest.raises(ValueError, match="fit_rounds"):
+        LearnerConfig.preset("default", fit_rounds=0)

@@ -72,6 +72,10 @@ class LoopConfig:
     net_l2: float = 1e-3  # lambda_2 of eq. 15
     replay_episodes: int = 10  # 0: train on this episode's pairs only (paper)
     net_epochs: int = 4  # full-batch steps (no replay) or minibatch epochs (replay)
+    # value-fitting rounds per iteration: eq. 14's targets computed again from the network, then
+    # net_epochs of eq. 15, this many times (paper: 1, one set of targets per iteration); more rounds
+    # carry the values further along the replay window's pairs, as fitted Q iteration does
+    fit_rounds: int = 1
     batch_size: int = 64
     input_scaling: bool = True  # network input D/7 and V/9 instead of raw phi
     input_bearing: bool = True  # network input (cos, sin) of the sector centre in V's place (inputs.py)
@@ -116,8 +120,8 @@ class LoopConfig:
         _bounds(self, gamma=(0.0, 1.0, "()"), alpha=(0.0, 1.0, "(]"), eta=(0.0, None, "()"),
                 eta_final=(0.0, None, "()"), margin_loss=(0.0, None, "[)"), net_step=(0.0, None, "()"),
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
-        _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, batch_size=1, replay_episodes=0,
-                validation_arenas=1, validate_every=1, final_candidates=1,
+        _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, fit_rounds=1, batch_size=1,
+                replay_episodes=0, validation_arenas=1, validate_every=1, final_candidates=1,
                 hidden_units=1, n_step=1)  # fmt: skip
 
 
@@ -246,6 +250,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "input_bearing": False,
     "terminal_value": "outcome",
     "pretreatment": "none",
+    "fit_rounds": 1,
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""

@@ -228,16 +228,20 @@ class IrlLoop:
         return values
 
     def _fit(self, t: Transitions) -> float:
+        """``fit_rounds`` rounds of targets (eq. 14) from the current network, each fitted (eq. 15);
+        the cost of the last round's last step or epoch."""
         c = self.loop
-        targets, self._clipped, self._spread = self._targets(t)
         x = self.inputs(t.phi)
-        if c.replay_episodes == 0:  # the paper: full-batch steps on this episode's pairs
-            for _ in range(max(c.net_epochs, 1)):
-                cost = network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)
-            return float(cost)
-        return network.minibatch_epochs(
-            self.net, x, t.action, targets, c.net_l2, c.net_step, c.net_epochs, c.batch_size, self.rng
-        )
+        for _ in range(c.fit_rounds):
+            targets, self._clipped, self._spread = self._targets(t)
+            if c.replay_episodes == 0:  # the paper: full-batch steps on this episode's pairs
+                for _ in range(max(c.net_epochs, 1)):
+                    cost = network.gradient_step(self.net, x, t.action, targets, c.net_l2, c.net_step)
+            else:
+                cost = network.minibatch_epochs(
+                    self.net, x, t.action, targets, c.net_l2, c.net_step, c.net_epochs, c.batch_size, self.rng
+                )
+        return float(cost)
 
     # -- one iteration of Algorithm 1 -------------------------------------------------
 
