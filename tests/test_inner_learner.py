@@ -205,16 +205,19 @@ def self_loop(n: int = 1) -> Transitions:
     return Transitions.concat([one] * n)
 
 
-def test_each_fitting_round_computes_its_targets_again_from_the_network():
+@pytest.mark.parametrize("replay", [10, 0])  # minibatch epochs over a window; the paper's full batch
+def test_each_fitting_round_computes_its_targets_again_from_the_network(replay):
     # scaled rewards (0.05 a decision) keep the targets inside [0, 1], where they read the network
-    two, one = loop(fit_rounds=2, reward_scaling=True), loop(reward_scaling=True)
+    two = loop(fit_rounds=2, reward_scaling=True, replay_episodes=replay)
+    one = loop(reward_scaling=True, replay_episodes=replay)
     t = self_loop(4)
     two._fit(t)
     one._fit(t)  # the same network and draws: round 1, then round 2 on targets of the new network
     one._fit(t)
     for name, w in network.get_weights(two.net).items():
         np.testing.assert_array_equal(w, network.get_weights(one.net)[name])
-    fixed = loop(net_epochs=8, reward_scaling=True)  # as many epochs on one set of targets: another network
+    # as many epochs on one set of targets: another network
+    fixed = loop(net_epochs=8, reward_scaling=True, replay_episodes=replay)
     fixed._fit(t)
     assert not np.array_equal(network.get_weights(fixed.net)["W2"], network.get_weights(two.net)["W2"])
 

@@ -16,9 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
-from nirl_mj.data.rundir import RunError
+from nirl_mj.data.rundir import RunDir, RunError
 from nirl_mj.data.transitions import Transitions
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.subjects import run_subject
@@ -30,9 +28,9 @@ from nirl_mj.sim.task import make_env
 def last_iterate(run: str, demos: str) -> IrlLoop:
     """The learner of ``run`` as its checkpoint left it (network, theta, replay window, draws)."""
     _, config, _, seed = saved_settings(run)
-    learner = IrlLoop(config, load_demonstrations(demos), seed)
-    with np.load(f"{run}/checkpoint.npz") as checkpoint:
-        learner.load_state(dict(checkpoint))
+    # one fit per round here, whatever fit_rounds the run trained with (the step's own fit does that many)
+    learner = IrlLoop(config.replace(fit_rounds=1), load_demonstrations(demos), seed)
+    learner.load_state(RunDir(run).read_checkpoint())
     return learner
 
 

@@ -229,7 +229,8 @@ class IrlLoop:
 
     def _fit(self, t: Transitions) -> float:
         """``fit_rounds`` rounds of targets (eq. 14) from the current network, each fitted (eq. 15);
-        the cost of the last round's last step or epoch."""
+        the cost the last round's fit reports (full batch: before its last step; replay: the mean
+        over its minibatch steps)."""
         c = self.loop
         x = self.inputs(t.phi)
         for _ in range(c.fit_rounds):
