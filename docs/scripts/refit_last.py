@@ -5,7 +5,7 @@ The run's checkpoint holds the last iteration's network, theta and replay window
 ``replay_episodes`` iterations' pairs). This rebuilds the learner from it, tests the last iterate's
 greedy policy on the run's held-out test arenas (as ``nirl-mj eval --which last``, nothing written),
 then fits the replay window ``--rounds`` more times, eq. 14's targets computed again from the network
-before each (the step's own fit, ``IrlLoop._fit``; theta unchanged, no new rollout), and tests again
+before each (the step's own fit, ``IrlLoop.fit_replay``; theta unchanged, no new rollout), and tests again
 on the same arenas. A diagnostic: it changes no run.
 
     python docs/scripts/refit_last.py RUN DEMOS.npz [--rounds 5] [--tests 100] [--seed 0]
@@ -17,7 +17,6 @@ import argparse
 import sys
 
 from nirl_mj.data.rundir import RunDir, RunError
-from nirl_mj.data.transitions import Transitions
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.subjects import run_subject
 from nirl_mj.experiments.training import load_demonstrations, saved_settings
@@ -37,8 +36,7 @@ def last_iterate(run: str, demos: str) -> IrlLoop:
 def refit(learner: IrlLoop, rounds: int) -> None:
     """``rounds`` more fits of the replay window, each on targets from the network as it then is."""
     for _ in range(rounds):
-        # the loop's own step 4 (targets, then eq. 15), without the rollouts and reward step around it
-        learner._fit(Transitions.concat(learner.replay))
+        learner.fit_replay()  # the loop's own step 4, without the rollouts and reward step around it
 
 
 def main() -> None:

@@ -227,6 +227,10 @@ class IrlLoop:
         values[t.terminal] = absorbing_values(self.expert_ends, ends, self.loop.reward_features)
         return values
 
+    def fit_replay(self) -> float:
+        """Step 4 of an iteration on the replay window as it stands (theta, rollouts untouched)."""
+        return self._fit(Transitions.concat(self.replay))
+
     def _fit(self, t: Transitions) -> float:
         """``fit_rounds`` rounds of targets (eq. 14) from the current network, each fitted (eq. 15);
         the cost the last round's fit reports (full batch: before its last step; replay: the mean
@@ -277,7 +281,7 @@ class IrlLoop:
         arrival = c.terminal_arrival_value if c.reads_outcome else 0.0
         fresh = Transitions.of(trajectories, arrival, progress=c.reward_source == "progress")  # lines 9-10
         self.replay = ([*self.replay, fresh])[-max(c.replay_episodes, 1) :]
-        cost = self._fit(Transitions.concat(self.replay))
+        cost = self.fit_replay()
         after = network.get_weights(self.net)
         kept, policy_net = after, self.net
 
