@@ -439,3 +439,31 @@ def test_refit_last_starts_from_the_runs_last_iterate_and_fits_only_the_network(
     before = network.get_weights(learner.net)
     script["refit"](learner, 1)
     assert not np.array_equal(network.get_weights(learner.net)["W2"], before["W2"])
+
+
+def test_end_checks_lists_each_run_s_candidates_and_the_change(tmp_path, capsys, monkeypatch):
+    """docs/scripts/end_checks.py: one line per run by seed, each candidate as iteration: score,
+    ended/N, "changed" where the kept iterate is not the rule's; the count of changed runs; a run
+    without the check is a one-line error. The stored development listing says run 2018 changed,
+    alone."""
+    import json
+    import sys
+
+    script = runpy.run_path(str(ROOT / "docs" / "scripts" / "end_checks.py"))
+    keep = {"first_round_best": 3, "iteration": 3, "end_check_arenas": 20,
+            "candidates": {"3": {"score": 0.6, "ended": 20}, "9": {"score": 0.5, "ended": 20}}}  # fmt: skip
+    move = {"first_round_best": 4, "iteration": 9, "end_check_arenas": 20,
+            "candidates": {"4": {"score": 0.7, "ended": 12}, "9": {"score": 0.55, "ended": 19}}}  # fmt: skip
+    lines = script["lines"]({7: {"selection": move}, 5: {"selection": keep}})
+    assert lines[1] == "5       3     3  3: 0.600, 20/20, 9: 0.500, 20/20"
+    assert lines[2] == "7       4     9  4: 0.700, 12/20, 9: 0.550, 19/20  changed"
+    assert lines[3] == "1 of 2 runs keep another iterate than the rule's"
+    stored = (ROOT / "docs" / "results" / "end_check" / "end-checks.txt").read_text().splitlines()
+    assert [line.split()[0] for line in stored if line.endswith("changed")] == ["2018"]
+    assert stored[-1] == "1 of 20 runs keep another iterate than the rule's"
+    run = tmp_path / "runs" / "M" / "0"
+    run.mkdir(parents=True)
+    (run / "run.json").write_text(json.dumps({"selection": {"rule": "demo_balanced", "iteration": 2}}))
+    monkeypatch.setattr(sys, "argv", ["end_checks.py", str(tmp_path), "M"])
+    with pytest.raises(SystemExit, match="holds no end check"):
+        runpy.run_path(str(ROOT / "docs" / "scripts" / "end_checks.py"), run_name="__main__")

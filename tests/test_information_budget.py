@@ -218,12 +218,15 @@ def test_a_trained_run_is_blind_to_its_episodes_outcomes_end_to_end(tmp_path, mo
         ends.append(trajectory._outcome_name(outcome))
         return finish(self, SWAP[ends[-1]], *args, **kwargs)
 
+    records = []
+
     def trained(config: LearnerConfig, scrambled: bool) -> tuple[int, dict]:
         out = tmp_path / f"run{len(list(tmp_path.glob('run*')))}"
         with monkeypatch.context() as patch:
             if scrambled:
                 patch.setattr(trajectory.TrajectoryRecorder, "finish", swapped)
             record = train(out, task, demos, config, seed=0)
+        records.append(record)
         with np.load(RunDir(out).file("policy.npz")) as policy:
             return record["selected_iteration"], {k: policy[k] for k in policy.files}
 
@@ -235,6 +238,17 @@ def test_a_trained_run_is_blind_to_its_episodes_outcomes_end_to_end(tmp_path, mo
     assert kept == kept_scrambled
     for key in same:
         np.testing.assert_array_equal(same[key], scrambled[key], err_msg=key)
+    # the end check drives its candidates on validation arenas and reads only that they ended
+    checked = config.replace(end_check_arenas=3)
+    (kept, same), (kept_scrambled, scrambled) = trained(checked, False), trained(checked, True)
+    check = records[-1]["selection"]
+    assert check["end_check_arenas"] == 3 and records[-2]["selection"] == check
+    # here the check overrules the rule (a candidate whose episodes all end against ones that time
+    # out), so a check that read which end would choose differently once the ends are swapped
+    assert check["iteration"] != check["first_round_best"], check
+    assert kept == kept_scrambled
+    for key in same:
+        np.testing.assert_array_equal(same[key], scrambled[key], err_msg=f"end check: {key}")
     oracle = config.replace(terminal_value="outcome")
     _, a = trained(oracle, False)
     _, b = trained(oracle, True)

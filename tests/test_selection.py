@@ -5,6 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import random_trajectory
 
 from nirl_mj.learn import network
 from nirl_mj.learn.bc import CloneSettings, early_stopped
@@ -50,14 +51,91 @@ def test_early_stopping_keeps_the_latest_of_equally_scored_epochs():
 def test_the_validation_re_check_keeps_the_latest_of_tied_candidates(monkeypatch):
     import nirl_mj.experiments.training as training
 
+    driven = []
+
+    def evaluate(env, policy, seeds, rollouts=None):
+        driven.append(list(seeds))
+        return [{"success_rate": 0.5}]
+
     monkeypatch.setattr(training, "_greedy", lambda net, config: None)
-    monkeypatch.setattr(training, "evaluate", lambda *a, **k: [{"success_rate": 0.5}])
+    monkeypatch.setattr(training, "evaluate", evaluate)
     scores = [0.3, 0.8, 0.8, 0.8, 0.6]
+    loop = SimpleNamespace(
+        selection="validation", final_candidates=2, validation_arenas=1, end_check_arenas=0
+    )
     learner = SimpleNamespace(scores=scores, kept=[object()] * 5, config=None, selected=latest_best(scores),
-                              loop=SimpleNamespace(selection="validation", final_candidates=2))  # fmt: skip
-    chosen = training.select(learner, rollouts=None, second_round=[1, 2])
+                              loop=loop)  # fmt: skip
+    chosen = training.select(learner, rollouts=None, validation=[0, 1, 2])
+    assert driven == [[1, 2], [1, 2]]  # the second round: the arenas after the first round's one
     assert sorted(chosen["candidates"]) == ["2", "3"] and chosen["iteration"] == 3
     assert chosen["first_round_best"] == 3 and chosen["ties"] == "latest"
     # a NaN score (no demonstrated pair scored) is never a candidate before a number
     learner.scores, learner.selected = [0.3, NAN, 0.8, NAN], 2
-    assert sorted(training.select(learner, rollouts=None, second_round=[1])["candidates"]) == ["0", "2"]
+    assert sorted(training.select(learner, rollouts=None, validation=[0, 1])["candidates"]) == ["0", "2"]
+    # one round of validation arenas only: the first round's best, nothing driven
+    driven.clear()
+    assert training.select(learner, rollouts=None, validation=[0]) == {
+        "rule": "validation", "iteration": 2, "ties": "latest"}  # fmt: skip
+    assert driven == []
+
+
+def _end_check(monkeypatch, scores: list[float], outcomes: dict[int, list[str]], arenas: int = 4) -> dict:
+    """The end check (``training._end_checked``) with iterate i's greedy policy driven as ``i`` and
+    its episodes ending as ``outcomes[i]`` (one per arena; "target" where not given)."""
+    import nirl_mj.experiments.training as training
+
+    driven = []
+
+    def evaluate(env, policy, seeds, rollouts=None):
+        driven.append((policy, list(seeds)))
+        ends = outcomes.get(policy, ["target"] * len(seeds))
+        rng = np.random.default_rng(0)
+        return {}, [random_trajectory(rng, 3, end) for end in ends]
+
+    monkeypatch.setattr(training, "_greedy", lambda weights, config: weights)
+    monkeypatch.setattr(training, "evaluate", evaluate)
+    loop = SimpleNamespace(selection="demo_balanced", final_candidates=2, validation_arenas=20,
+                           end_check_arenas=arenas)  # fmt: skip
+    learner = SimpleNamespace(scores=scores, kept=list(range(len(scores))), config=None,
+                              selected=latest_best(scores), loop=loop)  # fmt: skip
+    chosen = training.select(learner, rollouts=None, validation=list(range(100, 120)))
+    assert all(seeds == list(range(100, 100 + arenas)) for _, seeds in driven)  # the first N arenas
+    assert sorted(policy for policy, _ in driven) == sorted(int(i) for i in chosen["candidates"])
+    return chosen
+
+
+def test_the_end_check_keeps_the_candidate_whose_episodes_end(monkeypatch):
+    """The rule's best two (iterates 2 and 1: 0.9 each, the latest first) and the last (5) are driven;
+    iterate 2 times out once in 4 arenas, 1 collides twice (an end all the same: the check reads
+    that an episode ended, never how), so 1 is kept; iterate 4 (0.8) is not a candidate."""
+    scores = [0.3, 0.9, 0.9, 0.5, 0.8, 0.2]
+    outcomes = {
+        2: ["target", "timeout", "target", "target"],
+        1: ["collision", "target", "collision", "target"],
+    }
+    chosen = _end_check(monkeypatch, scores, outcomes)
+    assert chosen["candidates"] == {"1": {"score": 0.9, "ended": 4}, "2": {"score": 0.9, "ended": 3},
+                                    "5": {"score": 0.2, "ended": 4}}  # fmt: skip
+    assert chosen["iteration"] == 1 and chosen["first_round_best"] == 2 and chosen["end_check_arenas"] == 4
+    # every candidate's episodes end: the rule's choice
+    assert _end_check(monkeypatch, scores, {})["iteration"] == 2
+    # only the last iterate's end: the last, however low its score
+    looping = {i: ["timeout"] * 4 for i in (1, 2)}
+    assert _end_check(monkeypatch, scores, looping)["iteration"] == 5
+    # the last among the rule's best: no fifth candidate
+    chosen = _end_check(monkeypatch, [0.3, 0.9, 0.95], {2: ["timeout"] * 4})
+    assert sorted(chosen["candidates"]) == ["1", "2"] and chosen["iteration"] == 1
+
+
+def test_the_end_check_goes_with_a_rule_that_reads_the_demonstrations():
+    from nirl_mj.learn.config import LearnerConfig
+
+    for rule in ("last", "validation"):
+        with pytest.raises(ValueError, match="end_check_arenas = 20 .*demo_balanced.*set it to 0"):
+            LearnerConfig.preset("default", selection=rule, end_check_arenas=20)
+    with pytest.raises(ValueError, match="end_check_arenas = -1: expected a whole number >= 0"):
+        LearnerConfig.preset("default", end_check_arenas=-1)
+    assert (
+        LearnerConfig.preset("default", selection="demo_accuracy", end_check_arenas=5).loop.end_check_arenas
+        == 5
+    )

@@ -19,7 +19,7 @@ VOCABULARY = {
     "demonstrations": "the expert's recorded state-action pairs",
     "features": "phi(s), the 16 state features (what every policy acts on)",
     "episode_end": "that an episode of its own ended (a terminal state), not how: the dynamics",
-    "task_outcome": "how an episode ended: arrival, collision or timeout",
+    "task_outcome": "which end an episode came to: arrival or collision (a timeout is no end: episode_end)",
     "task_reward": "the task's reward (progress, +1 on arrival, -1 on collision)",
     "task_success_selection": "the task's success on arenas other than the tests (validation arenas, or "
     "its own training episodes), to choose a policy",

@@ -31,7 +31,7 @@ from nirl_mj.data.rundir import (
     RunError,
     check_weights,
 )
-from nirl_mj.data.trajectory import Trajectory, require_discrete
+from nirl_mj.data.trajectory import TERMINAL_OUTCOMES, Trajectory, require_discrete
 from nirl_mj.experiments.evaluation import evaluate
 from nirl_mj.experiments.reads import learner_reads
 from nirl_mj.experiments.seeds import domain_seeds
@@ -267,7 +267,7 @@ def _iterate(
         run.write_checkpoint(learner.state())
         if on_metrics:
             on_metrics(metrics)
-    selection = select(learner, rollouts, record["validation_seeds"][loop.validation_arenas :])
+    selection = select(learner, rollouts, record["validation_seeds"])
     return finish(run, learner, {**record, "selection": selection})
 
 
@@ -303,10 +303,11 @@ def _ensure_trained(run: RunDir, task, demos_path, config: LearnerConfig, seed: 
 
 
 def validation_seeds(config: LearnerConfig, seed: int) -> list[int]:
-    """Every validation arena a run may use: the first round's, then the second round's."""
+    """Every validation arena a run may use: the first round's, then the second round's; with
+    ``end_check_arenas``, at least that many (the end check drives the first of them)."""
     loop = config.loop
     rounds = 2 if loop.selection == "validation" and loop.final_candidates > 1 else 1
-    return domain_seeds("validation", seed, rounds * loop.validation_arenas)
+    return domain_seeds("validation", seed, max(rounds * loop.validation_arenas, loop.end_check_arenas))
 
 
 def planned_seeds(config: LearnerConfig, seed: int) -> set[int]:
@@ -321,23 +322,24 @@ TIES = "latest"
 which kept the first of equal scores, have no ``ties`` key."""
 
 
-def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dict:
-    """The kept policy to report, by the configured rule, with how it was chosen.
+def select(learner: IrlLoop, rollouts: Rollouts, validation: list[int]) -> dict:
+    """The kept policy to report, by the configured rule, with how it was chosen; ``validation``
+    is the run's validation arenas (``run.json``'s ``validation_seeds``).
 
     "validation": the ``final_candidates`` best first-round policies are evaluated
     on the second round's arenas too, and the best over both rounds wins (the latest
     on ties, as everywhere: ``nirl_mj.learn.selection``): picking the maximum of many
     noisy 20-arena estimates favours lucky ones, a fresh estimate of the few best
-    corrects that.
+    corrects that. With ``end_check_arenas``: :func:`_end_checked`.
     """
     loop = learner.loop
     first = learner.selected
+    if loop.end_check_arenas and learner.kept:
+        return _end_checked(learner, rollouts, validation[: loop.end_check_arenas])
+    second_round = validation[loop.validation_arenas :]
     if not second_round or not learner.kept:
         return {"rule": loop.selection, "iteration": first, "ties": TIES}
-    # best first, the latest first among equals; NaN (no score) last
-    score = [-np.inf if np.isnan(x) else x for x in learner.scores]
-    order = sorted(range(len(score)), key=lambda i: (-score[i], -i))
-    candidates = sorted(order[: loop.final_candidates])
+    candidates = sorted(_rule_order(learner)[: loop.final_candidates])
     combined = {}
     for i in candidates:
         policy = _greedy(learner.kept[i], learner.config)
@@ -350,6 +352,46 @@ def select(learner: IrlLoop, rollouts: Rollouts, second_round: list[int]) -> dic
         "ties": TIES,
         "first_round_best": first,
         "candidates": {str(i): {"first": learner.scores[i], "both": combined[i]} for i in candidates},
+    }
+
+
+def _rule_order(learner: IrlLoop) -> list[int]:
+    """The kept iterates by the rule's score, best first, the latest first among equals; NaN (no
+    score) last."""
+    score = [-np.inf if np.isnan(x) else x for x in learner.scores]
+    return sorted(range(len(score)), key=lambda i: (-score[i], -i))
+
+
+def _number(x: float) -> float | None:
+    """A score as strict JSON holds it: NaN (no demonstrated pair scored) as None."""
+    return None if np.isnan(x) else float(x)
+
+
+def _end_checked(learner: IrlLoop, rollouts: Rollouts, arenas: list[int]) -> dict:
+    """The ``final_candidates`` best iterates by the rule, and the last, each driven greedily once
+    in every arena of ``arenas``; kept: the one whose episodes ended most often before the time
+    limit (an arrival, a collision, a physics error: any end, ``episode_end``, never which), the
+    rule's order among equals (``end_ties``). A policy caught in a loop runs into the limit
+    (docs/RESULTS.md, "What NIRL's weakest unseen runs fail by"); the rule's scores, on the
+    demonstrated states, did not see it there."""
+    order = _rule_order(learner)
+    best = order[: learner.loop.final_candidates]
+    candidates = [*best, *({len(learner.kept) - 1} - set(best))]
+    ended = {}
+    for i in candidates:
+        _, trajectories = evaluate(None, _greedy(learner.kept[i], learner.config), arenas, rollouts=rollouts)
+        ended[i] = sum(t.outcome in TERMINAL_OUTCOMES for t in trajectories)
+    chosen = max(candidates, key=lambda i: (ended[i], -order.index(i)))
+    return {
+        "rule": f"{learner.loop.selection}, best {learner.loop.final_candidates} and the last end-checked",
+        "iteration": chosen,
+        "ties": TIES,
+        "end_ties": "rule order",
+        "first_round_best": learner.selected,
+        "end_check_arenas": len(arenas),
+        "candidates": {
+            str(i): {"score": _number(learner.scores[i]), "ended": ended[i]} for i in sorted(candidates)
+        },
     }
 
 

@@ -86,8 +86,15 @@ class LoopConfig:
     validation_arenas: int = 20
     validate_every: int = 5
     # validation selection: the best `final_candidates` policies are re-validated on as many
-    # new validation arenas, and the best over both sets is chosen (1: no second round)
+    # new validation arenas, and the best over both sets is chosen (1: no second round); with
+    # end_check_arenas, the candidates of the end check (below)
     final_candidates: int = 3
+    # a check that the kept policy's episodes end (any end, never which: ``episode_end``): the
+    # `final_candidates` best iterates by demo_balanced or demo_accuracy, and the last, are driven
+    # greedily on this many validation arenas each, and the one whose episodes end before the time
+    # limit most often is kept (the rule's order among equals; a collision counts as an end, so it
+    # prefers a crash to a timeout); a policy caught in a loop runs into the limit. 0: the rule alone
+    end_check_arenas: int = 0
     reward_source: str = "learned"  # "progress" / "constant": the controls (a known reward, no step)
     # the inner learner (docs/notebook/algorithm.md, "Inner learner"): what a target bootstraps
     # from, Q(s', a') of the next pair taken ("sarsa", eq. 14) or max_a' Q(s', a') ("q": Q-learning,
@@ -122,7 +129,12 @@ class LoopConfig:
                 net_l2=(0.0, None, "[)"), terminal_arrival_value=(None, None, "()"))  # fmt: skip
         _counts(self, episodes=1, trajectories_per_episode=1, net_epochs=1, fit_rounds=1, batch_size=1,
                 replay_episodes=0, validation_arenas=1, validate_every=1, final_candidates=1,
-                hidden_units=1, n_step=1)  # fmt: skip
+                hidden_units=1, n_step=1, end_check_arenas=0)  # fmt: skip
+        if self.end_check_arenas and self.selection in ("last", "validation"):
+            raise ValueError(
+                f"end_check_arenas = {self.end_check_arenas} checks the candidates of a rule that reads "
+                f"the demonstrations (demo_balanced, demo_accuracy), not {self.selection!r}; set it to 0"
+            )
 
 
 @dataclass(frozen=True)
@@ -251,6 +263,7 @@ RECORD_FALLBACKS: dict[str, Any] = {
     "terminal_value": "outcome",
     "pretreatment": "none",
     "fit_rounds": 1,
+    "end_check_arenas": 0,
 }
 """Fields added after run records were first written, with the value that reproduces what those
 runs did (:meth:`LearnerConfig.from_record`)."""
